@@ -1,0 +1,171 @@
+#!/usr/bin/env bash
+# Fresh-machine setup for MatrixTree on Debian 12. Safe to re-run: every step
+# checks first and does nothing when its result is already in place.
+#
+#   1. apt packages (Debian's VTK 9.1 SDK, GoogleTest, PoCL OpenCL, Xvfb)
+#   2. .venv made from /usr/bin/python3 with --system-site-packages, so it
+#      sees Debian's VTK; pyvista 0.46.5 installed without pip's `vtk` wheel
+#   3. CMake configure + build into build/
+#   4. a .pth file so .venv finds python/ (matrixtree) and build/python
+#      (matrixtree_vtk) without PYTHONPATH
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+SYS_PYTHON=/usr/bin/python3          # the Python Debian's VTK is built for
+VENV="$ROOT/.venv"
+VPY="$VENV/bin/python"
+BUILD_DIR="$ROOT/build"
+PYVISTA_VERSION=0.46.5               # newest pyvista that works with VTK 9.1
+
+T0=$SECONDS
+say() { printf '[setup %3ds] %s\n' "$((SECONDS - T0))" "$*"; }
+die() { printf '[setup] ERROR: %s\n' "$*" >&2; exit 1; }
+
+# ---------------------------------------------------------------------------
+# 1. Debian packages
+# ---------------------------------------------------------------------------
+APT_PACKAGES=(
+  build-essential cmake
+  libvtk9-dev python3-vtk9 python3-numpy python3-venv python3-pytest
+  libgtest-dev
+  pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
+  xvfb xauth
+)
+
+missing=()
+for pkg in "${APT_PACKAGES[@]}"; do
+  status="$(dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null || true)"
+  [[ "$status" == "install ok installed" ]] || missing+=("$pkg")
+done
+
+if ((${#missing[@]})); then
+  command -v apt-get >/dev/null || die "apt-get not found: this script targets Debian 12"
+  SUDO=""
+  if [[ "$(id -u)" -ne 0 ]]; then
+    command -v sudo >/dev/null || die "not root and no sudo: install ${missing[*]} by hand"
+    SUDO="sudo"
+  fi
+  say "apt: installing ${missing[*]}"
+  $SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+    "${missing[@]}" >/dev/null
+  say "apt: done"
+else
+  say "apt: all ${#APT_PACKAGES[@]} packages present"
+fi
+
+[[ -x "$SYS_PYTHON" ]] || die "$SYS_PYTHON missing"
+"$SYS_PYTHON" -c 'import vtkmodules.vtkCommonCore' 2>/dev/null \
+  || die "$SYS_PYTHON cannot import Debian's VTK (python3-vtk9)"
+
+# ---------------------------------------------------------------------------
+# 2. Python virtual environment
+# ---------------------------------------------------------------------------
+# A .venv made from another Python (pyenv, conda) cannot see Debian's VTK:
+# replace it.
+if [[ -x "$VPY" ]] && ! "$VPY" -c 'import sys, vtkmodules.vtkCommonCore; assert sys.base_prefix == "/usr"' 2>/dev/null; then
+  say "venv: $VENV does not use Debian's python3/VTK, recreating it"
+  rm -rf "$VENV"
+fi
+if [[ ! -x "$VPY" ]]; then
+  say "venv: creating .venv (--system-site-packages)"
+  "$SYS_PYTHON" -m venv --system-site-packages "$VENV"
+fi
+
+# The packages we need, checked by import (pyvista at its pinned version).
+venv_ready() {
+  "$VPY" - "$PYVISTA_VERSION" <<'PY' 2>/dev/null
+import sys
+import meshio, pytest, tqdm, pyvista
+assert pyvista.__version__ == sys.argv[1], pyvista.__version__
+PY
+}
+
+if venv_ready; then
+  say "pip: pytest meshio tqdm pyvista==$PYVISTA_VERSION already importable"
+else
+  say "pip: installing pytest meshio tqdm pyvista==$PYVISTA_VERSION (without the vtk wheel)"
+  export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_NO_INPUT=1
+  # Keep Debian's numpy: a pip numpy in .venv would shadow the one that
+  # Debian's VTK (numpy_interface, numpy_support) was packaged with.
+  constraints="$(mktemp)"
+  trap 'rm -f "$constraints"' EXIT
+  "$SYS_PYTHON" -c 'import numpy; print("numpy==" + numpy.__version__)' >"$constraints"
+  # pyvista's own dependencies except `vtk` (from its wheel metadata:
+  # matplotlib, numpy, pillow, pooch, scooby, typing-extensions, vtk).
+  "$VPY" -m pip install -q -c "$constraints" \
+    pytest meshio tqdm \
+    'matplotlib>=3.0.1' pillow pooch 'scooby>=0.5.1' 'typing-extensions>=4.10'
+  "$VPY" -m pip install -q --no-deps "pyvista==$PYVISTA_VERSION"
+  venv_ready || die "pip install finished but the packages do not import"
+  say "pip: done"
+fi
+
+# pip must not have brought its own VTK: VTK has to be Debian's 9.1.
+"$VPY" - <<'PY' || die "VTK check failed in .venv"
+import vtkmodules, vtkmodules.vtkCommonCore as cc
+version = cc.vtkVersion.GetVTKVersion()
+assert version.startswith("9.1."), f"VTK {version} in .venv, expected Debian's 9.1"
+assert vtkmodules.__file__.startswith("/usr/lib/python3/"), \
+    f"vtkmodules comes from {vtkmodules.__file__}, not Debian's python3-vtk9"
+import pyvista
+PY
+say "venv: VTK $("$VPY" -c 'import vtkmodules.vtkCommonCore as c; print(c.vtkVersion.GetVTKVersion())') (Debian), pyvista $("$VPY" -c 'import pyvista; print(pyvista.__version__)')"
+
+# ---------------------------------------------------------------------------
+# 3. CMake build
+# ---------------------------------------------------------------------------
+mkdir -p "$BUILD_DIR"
+say "cmake: configure build/ (log: build/configure.log)"
+if ! cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >"$BUILD_DIR/configure.log" 2>&1; then
+  tail -n 40 "$BUILD_DIR/configure.log" >&2
+  die "cmake configure failed"
+fi
+say "cmake: build -j$(nproc) (log: build/build.log)"
+if ! cmake --build "$BUILD_DIR" -j"$(nproc)" >"$BUILD_DIR/build.log" 2>&1; then
+  grep -E 'error|Error' "$BUILD_DIR/build.log" | head -n 40 >&2 || true
+  die "cmake build failed, see build/build.log"
+fi
+n_warn="$(grep -c ': warning:' "$BUILD_DIR/build.log" || true)"
+if ((n_warn)); then
+  say "cmake: $n_warn compiler warning(s) in this build:"
+  grep ': warning:' "$BUILD_DIR/build.log" | sort -u | head -n 20
+fi
+
+WRAPPED_DIR="$BUILD_DIR/python"
+[[ -f "$WRAPPED_DIR/matrixtree_vtk/__init__.py" ]] \
+  || die "matrixtree_vtk not found under $WRAPPED_DIR"
+
+# ---------------------------------------------------------------------------
+# 4. Python package and .pth
+# ---------------------------------------------------------------------------
+if [[ ! -f "$ROOT/python/matrixtree/__init__.py" ]]; then
+  say "python: creating python/matrixtree/__init__.py"
+  mkdir -p "$ROOT/python/matrixtree"
+  cat >"$ROOT/python/matrixtree/__init__.py" <<'PY'
+"""MatrixTree: block-sparse matrix trees for cell location, ray casting and
+volume marching, with VTK and pyvista adapters.
+
+The VTK classes come from the compiled ``matrixtree_vtk`` package, built
+against Debian's VTK 9.1; use the project's ``.venv`` (``scripts/setup.sh``).
+"""
+
+from matrixtree_vtk import vtkMatrixTreeVersion
+
+__version__ = vtkMatrixTreeVersion.GetVersion()
+PY
+fi
+
+SITE_PACKAGES="$("$VPY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+PTH="$SITE_PACKAGES/matrixtree.pth"
+pth_text="$(printf '%s\n%s' "$ROOT/python" "$WRAPPED_DIR")"
+if [[ ! -f "$PTH" || "$(cat "$PTH")" != "$pth_text" ]]; then
+  printf '%s\n' "$pth_text" >"$PTH"
+  say "python: wrote $PTH"
+fi
+
+"$VPY" -c 'import matrixtree_vtk, matrixtree; print(matrixtree.__version__)' >/dev/null \
+  || die ".venv cannot import matrixtree_vtk / matrixtree"
+say "ok: .venv/bin/python imports matrixtree $("$VPY" -c 'import matrixtree; print(matrixtree.__version__)') (took $((SECONDS - T0)) s)"
