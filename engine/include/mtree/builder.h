@@ -1,0 +1,318 @@
+// The parallel bottom-up build of Andrysco & Tricoche §5.1 (after Kalojanov & Slusallek 2009),
+// on OpenMP. Steps and the phase names reported in BuildStats:
+//   setup       root box, automatic height, level shapes (the one serial step, paper step 1)
+//   count+mark  per primitive: count overlapped bottom-level nodes, mark their blocks (step 2)
+//   alloc       exclusive scan of the block marks, block pointers set (steps 3-4)
+//   scan        exclusive scan of the per-primitive counts (step 5)
+//   pairs       write (node, primitive) pairs at the scanned offsets, no atomics (step 6)
+//   sort        stable radix sort of the pairs by node (step 7)
+//   offsets     leaf ranges from neighbouring keys in the sorted array (step 8)
+//   propagate   existence up to the root, level by level (step 9)
+// The result depends only on the input, never on the thread count: every parallel step writes
+// to positions fixed by a scan, and the sort is stable (primitives in a leaf stay in id order).
+#pragma once
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+
+#include <omp.h>
+
+#include "mtree/matrix_tree.h"
+#include "mtree/parallel.h"
+
+namespace mtree {
+
+template <class Prims>
+class MatrixTreeBuilder {
+ public:
+  /// Builds `tree` over `prims`. Throws std::invalid_argument on bad options or input
+  /// (non-finite bounds); an empty primitive set gives an empty tree (every query misses).
+  static void build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats);
+};
+
+namespace detail {
+struct PhaseClock {
+  using clock = std::chrono::steady_clock;
+  clock::time_point start = clock::now(), last = start;
+  BuildStats* stats;
+  explicit PhaseClock(BuildStats* s) : stats(s) {}
+  void lap(const char* name) {
+    const auto now = clock::now();
+    if (stats) stats->phasesMs.emplace_back(name, std::chrono::duration<double, std::milli>(now - last).count());
+    last = now;
+  }
+  void finish() {
+    if (stats) stats->totalMs = std::chrono::duration<double, std::milli>(clock::now() - start).count();
+  }
+};
+}  // namespace detail
+
+template <class Prims>
+void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree,
+                                     BuildStats* stats) {
+  if (opt.height < 0 || opt.height >= MT_MAX_LEVELS)
+    throw std::invalid_argument("MatrixTree: height must be in [0, " + std::to_string(MT_MAX_LEVELS - 1) +
+                                "] (0 = automatic), got " + std::to_string(opt.height));
+  if (opt.blockEdge < 1 || opt.blockEdge > 32 || (opt.blockEdge & (opt.blockEdge - 1)))
+    throw std::invalid_argument("MatrixTree: block edge must be a power of two in [1, 32], got " +
+                                std::to_string(opt.blockEdge));
+  if (!(opt.leafScale > 0)) throw std::invalid_argument("MatrixTree: leafScale must be > 0");
+  if (prims.size() >= MT_NULL) throw std::length_error("MatrixTree: too many primitives for 32-bit indices");
+
+  const int threads = resolveThreads(opt.threads);
+  if (stats) *stats = BuildStats{};
+  detail::PhaseClock clock(stats);
+  const int64_t n = static_cast<int64_t>(prims.size());
+
+  // ---- setup: root box, height, level shapes --------------------------------------------------
+  Box root;
+  {
+    std::vector<Box> partial(threads);
+#pragma omp parallel num_threads(threads)
+    {
+      Box b;
+#pragma omp for schedule(static)
+      for (int64_t i = 0; i < n; ++i) b.extend(prims.bounds(i));
+      partial[omp_get_thread_num()] = b;
+    }
+    for (const Box& b : partial) root.extend(b);
+  }
+  if (n > 0 && !(isFinite(root.lo) && isFinite(root.hi)))
+    throw std::invalid_argument("MatrixTree: a primitive has non-finite coordinates (NaN or inf)");
+
+  tree = MatrixTree{};
+  tree.kind_ = opt.kind;
+  tree.blockEdge_ = opt.blockEdge;
+  if (stats) stats->primitives = static_cast<uint64_t>(n);
+  if (n == 0) {
+    tree.empty_ = true;
+    tree.height_ = 0;
+    tree.logDims_.assign(1, {0, 0, 0});
+    tree.cellSize_.assign(1, Vec3(1, 1, 1));
+    tree.root_ = Box{};
+    tree.leaves_.reset(1, 1, 1, opt.blockEdge, MtLeafRange{MT_NULL, MT_NULL});
+    clock.lap("setup");
+    clock.finish();
+    return;
+  }
+  // Give a flat or point-like scene a non-zero extent on every axis, and pad by a relative 1e-9
+  // so that points on the bounding box map inside after round-off.
+  {
+    const Vec3 e = root.extent();
+    const double m = std::max(e.x, std::max(e.y, e.z));
+    const double scale = std::max({m, std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
+                                   std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
+    const double minExt = m > 0 ? m * 1e-6 : (scale > 0 ? scale * 1e-9 : 1e-9);
+    for (int a = 0; a < 3; ++a) {
+      const double ext = std::max(e[a], minExt);
+      const double c = 0.5 * (root.lo[a] + root.hi[a]);
+      const double half = 0.5 * ext * (1 + 2e-9) + 4 * std::numeric_limits<double>::epsilon() * std::fabs(c);
+      root.lo[a] = c - half;
+      root.hi[a] = c + half;
+    }
+  }
+  tree.root_ = root;
+  const Vec3 ext = root.extent();
+
+  int H = opt.height;
+  if (H == 0) {
+    // Median primitive extent from a deterministic sample of at most 65536 primitives.
+    const int64_t stride = std::max<int64_t>(1, n / 65536);
+    std::vector<double> sizes;
+    sizes.reserve(static_cast<size_t>(n / stride + 1));
+    for (int64_t i = 0; i < n; i += stride) {
+      const Vec3 e = prims.bounds(i).extent();
+      sizes.push_back(std::max(e.x, std::max(e.y, e.z)));
+    }
+    std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
+    double med = sizes[sizes.size() / 2];
+    if (!(med > 0)) med = std::max(ext.x, std::max(ext.y, ext.z)) * 1e-3;  // degenerate primitives
+    H = chooseHeight(opt.kind, ext, med, opt.leafScale);
+    if (stats) {
+      stats->autoHeight = true;
+      stats->medianPrimitiveExtent = med;
+    }
+  }
+  tree.height_ = H;
+  tree.empty_ = false;
+  tree.logDims_ = levelShapes(opt.kind, ext, H);
+  tree.cellSize_.resize(H + 1);
+  for (int l = 0; l <= H; ++l)
+    for (int a = 0; a < 3; ++a) tree.cellSize_[l][a] = std::ldexp(ext[a], -tree.logDims_[l][a]);
+  for (int a = 0; a < 3; ++a) tree.invLeaf_[a] = std::ldexp(1.0, tree.logDims_[H][a]) / ext[a];
+  const int nx = 1 << tree.logDims_[H][0], ny = 1 << tree.logDims_[H][1], nz = 1 << tree.logDims_[H][2];
+  tree.leaves_.reset(nx, ny, nz, opt.blockEdge, MtLeafRange{MT_NULL, MT_NULL});
+  tree.inner_.resize(H);
+  const Vec3 leafSize = tree.cellSize_[H];
+  // Boxes are padded by round-off of the coordinates so the exact test stays conservative.
+  const double pad = 64 * std::numeric_limits<double>::epsilon() *
+                     std::max({std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
+                               std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
+  const Vec3 invLeaf = tree.invLeaf_;
+  const Vec3 org = root.lo;
+  const bool exact = opt.overlap == OverlapMode::Exact;
+  if (stats) stats->height = H;
+  clock.lap("setup");
+
+  // Candidate range of bottom-level cells for primitive i (its bounding box, clamped).
+  auto cellRange = [&](int64_t i, int lo[3], int hi[3]) {
+    const Box b = prims.bounds(i);
+    const int dims[3] = {nx, ny, nz};
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = cellIndex((b.lo[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
+      hi[a] = cellIndex((b.hi[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
+    }
+  };
+  auto cellBox = [&](int i, int j, int k) {
+    Box b;
+    b.lo = Vec3(org.x + i * leafSize.x - pad, org.y + j * leafSize.y - pad, org.z + k * leafSize.z - pad);
+    b.hi = Vec3(org.x + (i + 1) * leafSize.x + pad, org.y + (j + 1) * leafSize.y + pad,
+                org.z + (k + 1) * leafSize.z + pad);
+    return b;
+  };
+
+  // ---- count + mark (step 2) ------------------------------------------------------------------
+  std::vector<uint32_t> counts(static_cast<size_t>(n));
+  std::vector<uint8_t> marks(tree.leaves_.pointerCount(), 0);
+  const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 256)
+  for (int64_t i = 0; i < n; ++i) {
+    int lo[3], hi[3];
+    cellRange(i, lo, hi);
+    uint32_t c = 0;
+    size_t lastBlock = ~size_t{0};
+    for (int k = lo[2]; k <= hi[2]; ++k)
+      for (int j = lo[1]; j <= hi[1]; ++j)
+        for (int ii = lo[0]; ii <= hi[0]; ++ii) {
+          const bool single = lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2];
+          if (exact && !single && !prims.overlaps(i, cellBox(ii, j, k))) continue;
+          ++c;
+          const size_t blk = leaves.pointerIndex(ii, j, k);
+          if (blk != lastBlock) {
+#pragma omp atomic write
+            marks[blk] = 1;
+            lastBlock = blk;
+          }
+        }
+    counts[i] = c;
+  }
+  clock.lap("count+mark");
+
+  // ---- allocate blocks (steps 3-4) ------------------------------------------------------------
+  tree.leaves_.allocateMarked(marks.data(), threads);
+  clock.lap("alloc");
+
+  // ---- scan counts (step 5) -------------------------------------------------------------------
+  std::vector<uint32_t> offsets(static_cast<size_t>(n));
+  const uint64_t numPairs = exclusiveScan(counts.data(), offsets.data(), static_cast<size_t>(n), threads);
+  if (numPairs >= MT_NULL) throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
+  clock.lap("scan");
+
+  // ---- write pairs (step 6) -------------------------------------------------------------------
+  std::vector<uint32_t> keys(numPairs), values(numPairs);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 256)
+  for (int64_t i = 0; i < n; ++i) {
+    int lo[3], hi[3];
+    cellRange(i, lo, hi);
+    const uint64_t volume = uint64_t(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1);
+    const bool test = exact && counts[i] != volume;  // every candidate overlapped: no test needed
+    uint32_t out = offsets[i];
+    for (int k = lo[2]; k <= hi[2]; ++k)
+      for (int j = lo[1]; j <= hi[1]; ++j)
+        for (int ii = lo[0]; ii <= hi[0]; ++ii) {
+          if (test && !prims.overlaps(i, cellBox(ii, j, k))) continue;
+          keys[out] = leaves.storageIndex(ii, j, k);
+          values[out] = static_cast<uint32_t>(i);
+          ++out;
+        }
+  }
+  clock.lap("pairs");
+
+  // ---- radix sort by node (step 7) ------------------------------------------------------------
+  {
+    std::vector<uint32_t> tk, tv;
+    const uint64_t maxKey = uint64_t(tree.leaves_.numBlocks()) * tree.leaves_.blockVolume();
+    radixSortPairs(keys, values, ceilLog2(std::max<uint64_t>(maxKey, 2)), threads, tk, tv);
+  }
+  clock.lap("sort");
+
+  // ---- leaf ranges from neighbouring keys (step 8) --------------------------------------------
+  {
+    MtLeafRange* data = tree.leaves_.data().data();
+    const int64_t m = static_cast<int64_t>(numPairs);
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int64_t i = 0; i < m; ++i) {
+      if (i == 0 || keys[i] != keys[i - 1]) {
+        data[keys[i]].begin = static_cast<uint32_t>(i);
+        if (i > 0) data[keys[i - 1]].end = static_cast<uint32_t>(i);
+      }
+    }
+    if (m > 0) data[keys[m - 1]].end = static_cast<uint32_t>(m);
+    tree.prims_ = std::move(values);
+  }
+  clock.lap("offsets");
+
+  // ---- existence up to the root (step 9) ------------------------------------------------------
+  for (int l = H - 1; l >= 0; --l) {
+    const auto& pl = tree.logDims_[l];
+    const auto& cl = tree.logDims_[l + 1];
+    const int sh[3] = {cl[0] - pl[0], cl[1] - pl[1], cl[2] - pl[2]};
+    BlockSparseMatrix<uint8_t>& parent = tree.inner_[l];
+    parent.reset(1 << pl[0], 1 << pl[1], 1 << pl[2], opt.blockEdge, 0);
+    const MtSparseDesc& cd = (l + 1 == H) ? tree.leaves_.desc() : tree.inner_[l + 1].desc();
+    const std::vector<uint32_t>& cptr =
+        (l + 1 == H) ? tree.leaves_.pointers() : tree.inner_[l + 1].pointers();
+    // A child block maps into exactly one parent block; mark it.
+    std::vector<uint8_t> pmarks(parent.pointerCount(), 0);
+    const int64_t ncp = static_cast<int64_t>(cptr.size());
+#pragma omp parallel for num_threads(threads) schedule(static) if (ncp > 4096)
+    for (int64_t p = 0; p < ncp; ++p) {
+      if (cptr[p] == MT_NULL) continue;
+      const int bx = static_cast<int>(p % cd.ptrDims[0]);
+      const int by = static_cast<int>((p / cd.ptrDims[0]) % cd.ptrDims[1]);
+      const int bz = static_cast<int>(p / (int64_t(cd.ptrDims[0]) * cd.ptrDims[1]));
+      const int i = (bx << cd.logBlock[0]) >> sh[0], j = (by << cd.logBlock[1]) >> sh[1],
+                k = (bz << cd.logBlock[2]) >> sh[2];
+#pragma omp atomic write
+      pmarks[parent.pointerIndex(i, j, k)] = 1;
+    }
+    parent.allocateMarked(pmarks.data(), threads);
+    // Fill each parent block from its children (gather: one writer per block, no atomics).
+    const MtSparseDesc& pd = parent.desc();
+    const std::vector<uint32_t>& pptr = parent.pointers();
+    uint8_t* pdata = parent.data().data();
+    const int64_t npp = static_cast<int64_t>(pptr.size());
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 16) if (npp > 64)
+    for (int64_t p = 0; p < npp; ++p) {
+      if (pptr[p] == MT_NULL) continue;
+      const int bx = static_cast<int>(p % pd.ptrDims[0]);
+      const int by = static_cast<int>((p / pd.ptrDims[0]) % pd.ptrDims[1]);
+      const int bz = static_cast<int>(p / (int64_t(pd.ptrDims[0]) * pd.ptrDims[1]));
+      const int e0 = 1 << pd.logBlock[0], e1 = 1 << pd.logBlock[1], e2 = 1 << pd.logBlock[2];
+      for (int dz = 0; dz < e2; ++dz)
+        for (int dy = 0; dy < e1; ++dy)
+          for (int dx = 0; dx < e0; ++dx) {
+            const int i = (bx << pd.logBlock[0]) + dx, j = (by << pd.logBlock[1]) + dy,
+                      k = (bz << pd.logBlock[2]) + dz;
+            if (!parent.inRange(i, j, k)) continue;
+            uint8_t any = 0;
+            for (int cz = 0; cz < (1 << sh[2]) && !any; ++cz)
+              for (int cy = 0; cy < (1 << sh[1]) && !any; ++cy)
+                for (int cx = 0; cx < (1 << sh[0]) && !any; ++cx) {
+                  const int cc[3] = {(i << sh[0]) + cx, (j << sh[1]) + cy, (k << sh[2]) + cz};
+                  any = tree.nodeExists(l + 1, cc) ? 1 : 0;
+                }
+            pdata[size_t(pptr[p]) * pd.blockVolume + parent.localIndex(i, j, k)] = any;
+          }
+    }
+  }
+  clock.lap("propagate");
+  if (stats) {
+    stats->references = numPairs;
+    stats->leaves = tree.numLeaves();
+  }
+  clock.finish();
+}
+
+}  // namespace mtree

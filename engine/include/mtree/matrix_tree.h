@@ -1,0 +1,237 @@
+// Matrix trees (Andrysco & Tricoche 2010/2011): every level of a regular tree is one
+// block-sparse matrix, so parent, child and neighbour positions are computed, not stored.
+//
+// Level l has 2^logDims[l][a] nodes along axis a over the root box. Going down one level splits
+// every node at its centre along a set of axes:
+//   Octree     every axis whose node extent is more than half the largest (a cube root splits
+//              all three: the classic octree; a flat or long scene is not split along its thin
+//              axes until the nodes are about cubic, so no level is wasted on empty slabs);
+//   RegularKd  the single axis of largest node extent (ties: x, then y, then z) — for a cubic
+//              root this is the paper's x, y, z alternation.
+// A node exists iff some primitive overlaps it. All primitives are referenced at the bottom
+// level (height H); upper levels only record existence (1 byte per node). Existence is monotone
+// along any root-to-leaf path, which is what makes the O(log H) leaf search a binary search.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "mtree/block_sparse.h"
+#include "mtree/geometry.h"
+#include "mtree/layout.h"
+
+namespace mtree {
+
+enum class TreeKind : int { Octree = 0, RegularKd = 1 };
+enum class OverlapMode : int { Exact = 0, BoundingBox = 1 };
+
+const char* treeKindName(TreeKind k);
+
+struct BuildOptions {
+  TreeKind kind = TreeKind::Octree;
+  /// Levels below the root; 0 = chosen from the scene (see chooseHeight()).
+  int height = 0;
+  /// Block edge B of every level's block-sparse matrix (power of two, 1..32).
+  int blockEdge = 8;
+  /// Exact: separating-axis test per candidate leaf; BoundingBox: every leaf the primitive's box
+  /// touches (faster build, more references, more primitive tests per ray).
+  OverlapMode overlap = OverlapMode::Exact;
+  /// Automatic height: the leaf extent targeted is leafScale x the median primitive extent.
+  double leafScale = 2.0;
+  /// OpenMP threads; 0 = OpenMP's default.
+  int threads = 0;
+};
+
+struct BuildStats {
+  std::vector<std::pair<std::string, double>> phasesMs;  // in build order
+  double totalMs = 0;
+  uint64_t references = 0;    // (leaf, primitive) pairs
+  uint64_t leaves = 0;        // existing leaves
+  uint64_t primitives = 0;
+  int height = 0;
+  bool autoHeight = false;
+  double medianPrimitiveExtent = 0;
+};
+
+struct TraversalStats {
+  uint64_t nodeVisits = 0;  // node lookups (each is two memory reads)
+  uint64_t primTests = 0;   // primitive intersection tests
+  uint64_t cells = 0;       // leaves and empty nodes stepped through
+  void add(const TraversalStats& o) {
+    nodeVisits += o.nodeVisits;
+    primTests += o.primTests;
+    cells += o.cells;
+  }
+};
+
+/// A node of the tree: its level and integer coordinates in that level's matrix.
+/// level < 0: outside the tree (point outside the root box, or empty tree).
+struct NodeRef {
+  int level = -1;
+  int c[3] = {0, 0, 0};
+  bool exists = false;  // true only for an existing bottom-level node (a leaf with primitives)
+};
+
+class MatrixTree {
+ public:
+  MatrixTree() = default;
+
+  // ---- shape ----
+  TreeKind kind() const { return kind_; }
+  int height() const { return height_; }
+  int numLevels() const { return height_ + 1; }
+  bool empty() const { return empty_; }
+  const Box& rootBox() const { return root_; }
+  Vec3 cellSize(int level) const { return cellSize_[level]; }
+  int logDim(int level, int axis) const { return logDims_[level][axis]; }
+  int dim(int level, int axis) const { return 1 << logDims_[level][axis]; }
+  int blockEdge() const { return blockEdge_; }
+
+  // ---- storage ----
+  const BlockSparseMatrix<uint8_t>& innerLevel(int l) const { return inner_[l]; }
+  const BlockSparseMatrix<MtLeafRange>& leafLevel() const { return leaves_; }
+  const std::vector<uint32_t>& primitiveIndices() const { return prims_; }
+  /// Bytes of level l (pointer matrix + allocated blocks).
+  size_t levelBytes(int l) const { return l == height_ ? leaves_.bytes() : inner_[l].bytes(); }
+  uint32_t levelBlocks(int l) const { return l == height_ ? leaves_.numBlocks() : inner_[l].numBlocks(); }
+  /// Total bytes of the tree: all levels plus the primitive index array.
+  size_t bytes() const;
+  uint64_t numLeaves() const;
+
+  // ---- queries (all const and thread-safe) ----
+  /// Does node c of level l exist? One block-sparse access.
+  bool nodeExists(int level, const int c[3]) const {
+    if (level == height_) {
+      const MtLeafRange* r = leaves_.find(c[0], c[1], c[2]);
+      return r && r->begin != MT_NULL;
+    }
+    const uint8_t* v = inner_[level].find(c[0], c[1], c[2]);
+    return v && *v;
+  }
+  /// Bottom-level coordinates of the leaf cell containing p; false if p is outside the root box.
+  bool leafCoords(Vec3 p, int L[3]) const;
+  /// The ancestor at `level` of bottom-level cell L.
+  void ancestor(const int L[3], int level, int c[3]) const {
+    for (int a = 0; a < 3; ++a) c[a] = L[a] >> (logDims_[height_][a] - logDims_[level][a]);
+  }
+  /// Sub-linear leaf finding: hash into the bottom level; if that leaf is absent, binary search
+  /// the root-to-leaf path for the deepest existing node. Returns the leaf, or the largest empty
+  /// node containing p (level = deepest existing + 1, exists = false).
+  NodeRef leafFind(Vec3 p, TraversalStats* st = nullptr) const;
+  /// Same answer by a plain top-down descent, O(H): the reference for tests.
+  NodeRef leafFindTopDown(Vec3 p) const;
+  /// Leaf finding from bottom-level coordinates with the search bracketed: level `lo` is known to
+  /// exist on the path and level `hi` known absent (hi = H+1 if unknown).
+  NodeRef locate(const int L[3], int lo, int hi, TraversalStats* st) const;
+  /// Neighbour finding (paper §2.4): the leaf or largest empty node across face (axis, dir) of
+  /// `n` that contains bottom-level cell L (which must lie just across that face). The node of
+  /// n's size across the face brackets the binary search. level < 0 if that face is the root's.
+  NodeRef neighbourFind(const NodeRef& n, int axis, int dir, const int L[3], TraversalStats* st) const;
+  /// Box of node c at level l, in world coordinates.
+  Box nodeBox(int level, const int c[3]) const;
+  /// Primitive range of an existing leaf.
+  MtLeafRange leafRange(const NodeRef& n) const { return leaves_.get(n.c[0], n.c[1], n.c[2]); }
+
+  /// Walks the ray o + t d, t in [tmin, tmax], front to back through the leaves and empty nodes
+  /// it crosses, stepping from node to neighbour (no stack, no restart). For every existing leaf
+  /// calls fn(const uint32_t* prims, uint32_t count, double tEnter, double tExit) -> bool; a
+  /// true return stops the walk. The walk is robust to rays parallel to planes, rays starting
+  /// inside, and rays along node faces: the exit axis advances by an integer step, the other
+  /// coordinates are clamped into the current node, so it never skips or revisits a node.
+  template <class LeafFn>
+  void traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& fn, TraversalStats* st) const;
+
+ private:
+  template <class Prims>
+  friend class MatrixTreeBuilder;
+
+  TreeKind kind_ = TreeKind::Octree;
+  int height_ = 0;
+  int blockEdge_ = 8;
+  bool empty_ = true;
+  Box root_;
+  Vec3 invLeaf_;  // 1 / bottom-level cell size
+  std::vector<std::array<int, 3>> logDims_;
+  std::vector<Vec3> cellSize_;
+  std::vector<BlockSparseMatrix<uint8_t>> inner_;  // levels 0..H-1
+  BlockSparseMatrix<MtLeafRange> leaves_;          // level H
+  std::vector<uint32_t> prims_;
+};
+
+/// floor(x) clamped to [lo, hi], clamping in floating point first so a huge x cannot overflow.
+inline int cellIndex(double x, int lo, int hi) {
+  const double f = std::floor(x);
+  if (!(f >= lo)) return lo;  // also catches NaN
+  if (f >= hi) return hi;
+  return static_cast<int>(f);
+}
+
+/// Computes the per-level logDims of a tree of `kind` over a root box of extent `e`, `height` levels
+/// below the root.
+std::vector<std::array<int, 3>> levelShapes(TreeKind kind, Vec3 e, int height);
+
+/// The automatic height rule: the shallowest level whose largest node extent is at most
+/// leafScale x medianExtent, capped so the bottom level has at most 2^33 nodes.
+int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double leafScale);
+
+// ---------------------------------------------------------------------------------------------
+template <class LeafFn>
+void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& fn,
+                             TraversalStats* st) const {
+  if (empty_ || !isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return;
+  if (d.x == 0 && d.y == 0 && d.z == 0) return;
+  double t0 = tmin, t1 = tmax;
+  if (!rayBox(o, d, root_, t0, t1)) return;
+  const int H = height_;
+  const Vec3 ol = o - root_.lo;  // local coordinates: the root box starts at 0
+  int L[3];
+  {
+    const Vec3 p = ol + d * t0;
+    for (int a = 0; a < 3; ++a)
+      L[a] = cellIndex(p[a] * invLeaf_[a], 0, dim(H, a) - 1);
+  }
+  NodeRef n = locate(L, 0, H + 1, st);
+  double tEnter = t0;
+  const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
+  for (int step = 0; step < maxSteps; ++step) {
+    if (st) ++st->cells;
+    const Vec3 cs = cellSize_[n.level];
+    double tExit = t1;
+    int exitAxis = -1;
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] > 0) {
+        const double t = ((n.c[a] + 1) * cs[a] - ol[a]) / d[a];
+        if (t < tExit) { tExit = t; exitAxis = a; }
+      } else if (d[a] < 0) {
+        const double t = (n.c[a] * cs[a] - ol[a]) / d[a];
+        if (t < tExit) { tExit = t; exitAxis = a; }
+      }
+    }
+    tExit = std::max(tExit, tEnter);
+    if (n.exists) {
+      const MtLeafRange r = leaves_.get(n.c[0], n.c[1], n.c[2]);
+      if (fn(prims_.data() + r.begin, r.end - r.begin, tEnter, tExit)) return;
+    }
+    if (exitAxis < 0) return;  // the ray interval ends inside this node
+    // Bottom-level cell just across the exit face: exact integer step on the exit axis, the
+    // other axes from the exit point, clamped into this node so round-off cannot skip a node.
+    const int sh = logDims_[H][exitAxis] - logDims_[n.level][exitAxis];
+    const int dir = d[exitAxis] > 0 ? 1 : -1;
+    L[exitAxis] = dir > 0 ? ((n.c[exitAxis] + 1) << sh) : ((n.c[exitAxis] << sh) - 1);
+    if (L[exitAxis] < 0 || L[exitAxis] >= dim(H, exitAxis)) return;
+    for (int a = 0; a < 3; ++a) {
+      if (a == exitAxis) continue;
+      const int s = logDims_[H][a] - logDims_[n.level][a];
+      const int lo = n.c[a] << s, hi = ((n.c[a] + 1) << s) - 1;
+      L[a] = cellIndex((ol[a] + d[a] * tExit) * invLeaf_[a], lo, hi);
+    }
+    n = neighbourFind(n, exitAxis, dir, L, st);
+    if (n.level < 0) return;
+    tEnter = tExit;
+  }
+}
+
+}  // namespace mtree

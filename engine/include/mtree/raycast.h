@@ -1,0 +1,95 @@
+// Ray queries over a triangle mesh indexed by a matrix tree, and the brute-force references the
+// tests compare them with. Ties (two triangles at the same t, e.g. a hit on a shared edge) are
+// broken by the smaller triangle id, in both, so answers are comparable exactly.
+#pragma once
+
+#include "mtree/matrix_tree.h"
+#include "mtree/primitives.h"
+
+namespace mtree {
+
+struct RayHit {
+  double t = std::numeric_limits<double>::infinity();
+  uint32_t prim = MT_NULL;
+  double u = 0, v = 0;
+  bool hit() const { return prim != MT_NULL; }
+};
+
+/// Closest hit with t in [tmin, tmax]. Returns whether anything was hit.
+inline bool intersectFirst(const MatrixTree& tree, const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin,
+                           double tmax, RayHit& hit, TraversalStats* st = nullptr) {
+  hit = RayHit{};
+  hit.t = tmax;
+  uint64_t tests = 0;
+  tree.traverseRay(
+      o, d, tmin, tmax,
+      [&](const uint32_t* prims, uint32_t count, double /*tEnter*/, double tExit) {
+        for (uint32_t k = 0; k < count; ++k) {
+          const uint32_t id = prims[k];
+          double t, u, v;
+          ++tests;
+          if (rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t, t,
+                            u, v)) {
+            if (t < hit.t || (t == hit.t && id < hit.prim)) {
+              hit.t = t;
+              hit.prim = id;
+              hit.u = u;
+              hit.v = v;
+            }
+          }
+        }
+        // A hit inside this node (t <= tExit) cannot be beaten by a later node.
+        return hit.prim != MT_NULL && hit.t <= tExit;
+      },
+      st);
+  if (st) st->primTests += tests;
+  if (!hit.hit()) hit.t = std::numeric_limits<double>::infinity();
+  return hit.hit();
+}
+
+/// Any hit with t in [tmin, tmax] (shadow rays): stops at the first one found.
+inline bool intersectAny(const MatrixTree& tree, const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin,
+                         double tmax, TraversalStats* st = nullptr) {
+  bool found = false;
+  uint64_t tests = 0;
+  tree.traverseRay(
+      o, d, tmin, tmax,
+      [&](const uint32_t* prims, uint32_t count, double, double) {
+        for (uint32_t k = 0; k < count; ++k) {
+          const uint32_t id = prims[k];
+          double t, u, v;
+          ++tests;
+          if (rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax, t, u,
+                            v)) {
+            found = true;
+            return true;
+          }
+        }
+        return false;
+      },
+      st);
+  if (st) st->primTests += tests;
+  return found;
+}
+
+/// Reference: test every triangle.
+inline bool intersectFirstBruteForce(const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin, double tmax,
+                                     RayHit& hit) {
+  hit = RayHit{};
+  hit.t = tmax;
+  for (size_t id = 0; id < mesh.size(); ++id) {
+    double t, u, v;
+    if (rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t, t, u, v)) {
+      if (t < hit.t || (t == hit.t && id < hit.prim)) {
+        hit.t = t;
+        hit.prim = static_cast<uint32_t>(id);
+        hit.u = u;
+        hit.v = v;
+      }
+    }
+  }
+  if (!hit.hit()) hit.t = std::numeric_limits<double>::infinity();
+  return hit.hit();
+}
+
+}  // namespace mtree

@@ -1,0 +1,156 @@
+#include "mtree/matrix_tree.h"
+
+namespace mtree {
+
+const char* treeKindName(TreeKind k) { return k == TreeKind::Octree ? "octree" : "kdtree"; }
+
+std::vector<std::array<int, 3>> levelShapes(TreeKind kind, Vec3 e, int height) {
+  std::vector<std::array<int, 3>> shapes(static_cast<size_t>(height) + 1, std::array<int, 3>{0, 0, 0});
+  Vec3 cell = e;
+  for (int l = 1; l <= height; ++l) {
+    std::array<int, 3> s = shapes[l - 1];
+    const double m = std::max(cell.x, std::max(cell.y, cell.z));
+    if (kind == TreeKind::Octree) {
+      for (int a = 0; a < 3; ++a)
+        if (cell[a] * 2.0 > m) { ++s[a]; cell[a] *= 0.5; }
+    } else {
+      const int a = (cell.x >= cell.y && cell.x >= cell.z) ? 0 : (cell.y >= cell.z ? 1 : 2);
+      ++s[a];
+      cell[a] *= 0.5;
+    }
+    shapes[l] = s;
+  }
+  return shapes;
+}
+
+int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double leafScale) {
+  const double target = leafScale * medianExtent;
+  // Deep enough for the target leaf size, never so deep that the bottom level's pointer matrix
+  // (2^sum(logDims) / B^3 cells) outgrows what the primitives need: at most 2^33 bottom nodes.
+  constexpr int kMaxLogNodes = 33;
+  const int maxH = kind == TreeKind::Octree ? 24 : MT_MAX_LEVELS - 1;
+  Vec3 cell = rootExtent;
+  int h = 0;
+  std::array<int, 3> s{0, 0, 0};
+  while (h < maxH) {
+    const double m = std::max(cell.x, std::max(cell.y, cell.z));
+    if (!(target > 0) || m <= target) break;
+    std::array<int, 3> ns = s;
+    Vec3 nc = cell;
+    if (kind == TreeKind::Octree) {
+      for (int a = 0; a < 3; ++a)
+        if (cell[a] * 2.0 > m) { ++ns[a]; nc[a] *= 0.5; }
+    } else {
+      const int a = (cell.x >= cell.y && cell.x >= cell.z) ? 0 : (cell.y >= cell.z ? 1 : 2);
+      ++ns[a];
+      nc[a] *= 0.5;
+    }
+    if (ns[0] + ns[1] + ns[2] > kMaxLogNodes) break;
+    s = ns;
+    cell = nc;
+    ++h;
+  }
+  return h;
+}
+
+size_t MatrixTree::bytes() const {
+  size_t b = prims_.size() * sizeof(uint32_t) + leaves_.bytes();
+  for (const auto& m : inner_) b += m.bytes();
+  return b;
+}
+
+uint64_t MatrixTree::numLeaves() const {
+  uint64_t n = 0;
+  for (const MtLeafRange& r : leaves_.data()) n += (r.begin != MT_NULL);
+  return n;
+}
+
+bool MatrixTree::leafCoords(Vec3 p, int L[3]) const {
+  if (empty_ || !isFinite(p) || !root_.contains(p)) return false;
+  for (int a = 0; a < 3; ++a) L[a] = cellIndex((p[a] - root_.lo[a]) * invLeaf_[a], 0, dim(height_, a) - 1);
+  return true;
+}
+
+NodeRef MatrixTree::locate(const int L[3], int lo, int hi, TraversalStats* st) const {
+  NodeRef r;
+  const int H = height_;
+  if (hi > H) {
+    if (st) ++st->nodeVisits;
+    if (nodeExists(H, L)) {
+      r.level = H;
+      for (int a = 0; a < 3; ++a) r.c[a] = L[a];
+      r.exists = true;
+      return r;
+    }
+    hi = H;
+  }
+  // Invariant: the ancestor at `lo` exists, the ancestor at `hi` does not.
+  int c[3];
+  while (hi - lo > 1) {
+    const int mid = (lo + hi) / 2;
+    ancestor(L, mid, c);
+    if (st) ++st->nodeVisits;
+    if (nodeExists(mid, c)) lo = mid;
+    else hi = mid;
+  }
+  r.level = hi;
+  ancestor(L, hi, r.c);
+  r.exists = false;
+  return r;
+}
+
+NodeRef MatrixTree::leafFind(Vec3 p, TraversalStats* st) const {
+  int L[3];
+  if (!leafCoords(p, L)) return NodeRef{};
+  return locate(L, 0, height_ + 1, st);
+}
+
+NodeRef MatrixTree::leafFindTopDown(Vec3 p) const {
+  int L[3];
+  if (!leafCoords(p, L)) return NodeRef{};
+  NodeRef r;
+  for (int l = 1; l <= height_; ++l) {
+    ancestor(L, l, r.c);
+    if (!nodeExists(l, r.c)) {
+      r.level = l;
+      return r;
+    }
+  }
+  r.level = height_;
+  ancestor(L, height_, r.c);
+  r.exists = true;
+  return r;
+}
+
+NodeRef MatrixTree::neighbourFind(const NodeRef& n, int axis, int dir, const int L[3],
+                                  TraversalStats* st) const {
+  int c[3] = {n.c[0], n.c[1], n.c[2]};
+  c[axis] += dir;
+  if (c[axis] < 0 || c[axis] >= dim(n.level, axis)) return NodeRef{};
+  // The same-size node across the face brackets the search: if it exists, the answer is at or
+  // below its level; if not, above it.
+  if (st) ++st->nodeVisits;
+  if (nodeExists(n.level, c)) {
+    if (n.level == height_) {
+      NodeRef r;
+      r.level = height_;
+      for (int a = 0; a < 3; ++a) r.c[a] = L[a];
+      r.exists = true;
+      return r;
+    }
+    return locate(L, n.level, height_ + 1, st);
+  }
+  return locate(L, 0, n.level, st);
+}
+
+Box MatrixTree::nodeBox(int level, const int c[3]) const {
+  Box b;
+  const Vec3 cs = cellSize_[level];
+  for (int a = 0; a < 3; ++a) {
+    b.lo[a] = root_.lo[a] + c[a] * cs[a];
+    b.hi[a] = root_.lo[a] + (c[a] + 1) * cs[a];
+  }
+  return b;
+}
+
+}  // namespace mtree
