@@ -1,10 +1,24 @@
-"""MatrixTree: block-sparse matrix trees for cell location, ray casting and
-volume marching, with VTK and pyvista adapters.
+"""MatrixTree: implicit, block-sparse matrix trees (Andrysco & Tricoche 2011) for ray casting
+and spatial queries on meshes that change every frame, with VTK and pyvista adapters.
 
-The VTK classes come from the compiled ``matrixtree_vtk`` package, built
-against Debian's VTK 9.1; use the project's ``.venv`` (``scripts/setup.sh``).
+The heavy lifting is done by the VTK classes of the compiled ``matrixtree_vtk`` package (built
+against Debian's VTK 9.1 by ``scripts/setup.sh``); this package converts numpy arrays and
+meshes and delegates, it never loops over points or rays in Python.
+
+Examples
+--------
+>>> import matrixtree
+>>> mesh = matrixtree.scenes.default_scene(resolution=0.3)
+>>> tree = matrixtree.MatrixTree(mesh, tree="octree")
+>>> tree.stats()["triangles"] == mesh.GetNumberOfPolys()
+True
 """
 
 from matrixtree_vtk import vtkMatrixTreeVersion
 
+from matrixtree import scenes
+from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb
+
 __version__ = vtkMatrixTreeVersion.GetVersion()
+
+__all__ = ["MatrixTree", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "__version__"]

@@ -59,6 +59,47 @@ struct Box {
 /// Conservative by construction of the caller: pass a box already padded for round-off.
 bool triangleOverlapsBox(Vec3 a, Vec3 b, Vec3 c, const Box& box);
 
+/// The separating-axis test of one triangle against many boxes of one size (the candidate leaves
+/// of the build): the 10 non-trivial axes (normal, 9 edge x box-axis products), the triangle's
+/// projection interval and the box radius on each are computed once; a box then costs one dot
+/// product per axis. The 3 box-normal axes are not tested: callers only pass boxes that their
+/// bounding-box range already overlaps, so those axes never separate (skipping them can only
+/// say "overlap", i.e. stays conservative).
+class TriangleBoxTester {
+ public:
+  TriangleBoxTester(Vec3 a, Vec3 b, Vec3 c, Vec3 half) {
+    const Vec3 e[3] = {b - a, c - b, a - c};
+    auto add = [&](Vec3 ax) {
+      if (ax.x == 0 && ax.y == 0 && ax.z == 0) return;
+      const double p0 = dot(a, ax), p1 = dot(b, ax), p2 = dot(c, ax);
+      axis_[n_] = ax;
+      lo_[n_] = std::min(p0, std::min(p1, p2));
+      hi_[n_] = std::max(p0, std::max(p1, p2));
+      r_[n_] = half.x * std::fabs(ax.x) + half.y * std::fabs(ax.y) + half.z * std::fabs(ax.z);
+      ++n_;
+    };
+    add(cross(e[0], e[1]));
+    for (const Vec3& d : e) {
+      add(Vec3(0, -d.z, d.y));
+      add(Vec3(d.z, 0, -d.x));
+      add(Vec3(-d.y, d.x, 0));
+    }
+  }
+  /// Does the triangle overlap the box of the construction's half size centred at `c`?
+  bool overlaps(Vec3 c) const {
+    for (int k = 0; k < n_; ++k) {
+      const double pc = dot(c, axis_[k]);
+      if (lo_[k] - pc > r_[k] || hi_[k] - pc < -r_[k]) return false;
+    }
+    return true;
+  }
+
+ private:
+  Vec3 axis_[10];
+  double lo_[10], hi_[10], r_[10];
+  int n_ = 0;
+};
+
 /// Separating-axis test of a convex polytope (the convex hull of `n` points, given with its
 /// `nf` face normals and `ne` edge directions) against a box. Used for linear cells.
 bool convexOverlapsBox(const Vec3* pts, int n, const Vec3* faceNormals, int nf, const Vec3* edges,

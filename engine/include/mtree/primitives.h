@@ -2,7 +2,8 @@
 //   size()             how many primitives;
 //   bounds(i)          the primitive's axis-aligned box (world coordinates);
 //   overlaps(i, box)   whether it overlaps a closed box (exact, or conservative).
-// The builder never sees anything else, so triangles and unstructured-grid cells share it.
+// For speed a set also offers local(i): the primitive with its data fetched once, answering
+// bounds(), overlaps(box) and tester(halfSize), whose overlaps(centre) tests many equal boxes. The builder never sees anything else, so triangles and unstructured-grid cells share it.
 #pragma once
 
 #include <cstdint>
@@ -49,6 +50,21 @@ class TriangleMesh {
   bool overlaps(size_t i, const Box& box) const {
     return triangleOverlapsBox(vertex(i, 0), vertex(i, 1), vertex(i, 2), box);
   }
+  /// One primitive with its vertices fetched once, for the builder's per-candidate-node loop.
+  struct Local {
+    Vec3 a, b, c;
+    Box bounds() const {
+      Box bb;
+      bb.extend(a);
+      bb.extend(b);
+      bb.extend(c);
+      return bb;
+    }
+    bool overlaps(const Box& box) const { return triangleOverlapsBox(a, b, c, box); }
+    /// Overlap tests against many boxes of half size `half`, given by their centres.
+    TriangleBoxTester tester(Vec3 half) const { return TriangleBoxTester(a, b, c, half); }
+  };
+  Local local(size_t i) const { return Local{vertex(i, 0), vertex(i, 1), vertex(i, 2)}; }
   const std::vector<double>& points() const { return pts_; }
   const std::vector<uint32_t>& triangles() const { return tris_; }
   /// Replace the coordinates (same connectivity): the per-frame update of a deforming mesh.

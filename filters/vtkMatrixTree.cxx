@@ -1,0 +1,271 @@
+#include "vtkMatrixTree.h"
+
+#include "vtkMatrixTreeInternals.h"
+
+#include "vtkDataArray.h"
+#include "vtkDoubleArray.h"
+#include "vtkIdTypeArray.h"
+#include "vtkIntArray.h"
+#include "vtkObjectFactory.h"
+#include "vtkPoints.h"
+#include "vtkPolyData.h"
+
+#include "mtree/raycast.h"
+
+#include <chrono>
+#include <limits>
+
+vtkStandardNewMacro(vtkMatrixTree);
+vtkCxxSetObjectMacro(vtkMatrixTree, DataSet, vtkPolyData);
+
+//------------------------------------------------------------------------------
+vtkMatrixTree::vtkMatrixTree()
+  : Internals(new vtkMatrixTreeInternals)
+{
+}
+
+//------------------------------------------------------------------------------
+vtkMatrixTree::~vtkMatrixTree()
+{
+  this->SetDataSet(nullptr);
+  delete this->Internals;
+}
+
+//------------------------------------------------------------------------------
+bool vtkMatrixTree::Build()
+{
+  vtkMatrixTreeInternals& in = *this->Internals;
+  in.Valid = false;
+  if (!this->DataSet)
+  {
+    vtkErrorMacro("Build: no data set; call SetDataSet(polydata) first.");
+    return false;
+  }
+  const int b = this->BlockSize;
+  if (b < 1 || b > 32 || (b & (b - 1)))
+  {
+    vtkErrorMacro("Build: BlockSize must be a power of two in [1, 32], got " << b << ".");
+    return false;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string error;
+  if (!vtkMatrixTreeConvert::ToTriangleMesh(this->DataSet, in.Mesh, in.CellOfTriangle, error))
+  {
+    vtkErrorMacro("Build: bad input data set: " << error << ".");
+    return false;
+  }
+  this->ConversionTime =
+    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  mtree::BuildOptions opt;
+  opt.kind = this->TreeType == KDTREE ? mtree::TreeKind::RegularKd : mtree::TreeKind::Octree;
+  opt.height = this->Height;
+  opt.blockEdge = this->BlockSize;
+  opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
+  opt.leafScale = this->LeafScale;
+  opt.threads = this->NumberOfThreads;
+  try
+  {
+    mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(in.Mesh, opt, in.Tree, &in.Stats);
+  }
+  catch (const std::exception& e)
+  {
+    vtkErrorMacro("Build failed: " << e.what());
+    return false;
+  }
+  in.Valid = true;
+  ++this->NumberOfBuilds;
+  this->BuildTime.Modified();
+  return true;
+}
+
+//------------------------------------------------------------------------------
+bool vtkMatrixTree::BuildIfNeeded()
+{
+  if (this->Internals->Valid && this->DataSet && this->BuildTime > this->GetMTime() &&
+    this->BuildTime > this->DataSet->GetMTime() &&
+    (!this->DataSet->GetPoints() || this->BuildTime > this->DataSet->GetPoints()->GetMTime()))
+  {
+    return true;
+  }
+  return this->Build();
+}
+
+bool vtkMatrixTree::IsBuilt() const
+{
+  return this->Internals->Valid;
+}
+
+//------------------------------------------------------------------------------
+int vtkMatrixTree::GetTreeHeight() const
+{
+  return this->Internals->Valid ? this->Internals->Tree.height() : 0;
+}
+vtkIdType vtkMatrixTree::GetNumberOfTriangles() const
+{
+  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Mesh.size()) : 0;
+}
+vtkIdType vtkMatrixTree::GetNumberOfLeaves() const
+{
+  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Stats.leaves) : 0;
+}
+vtkIdType vtkMatrixTree::GetNumberOfReferences() const
+{
+  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Stats.references) : 0;
+}
+vtkIdType vtkMatrixTree::GetMemorySize() const
+{
+  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Tree.bytes()) : 0;
+}
+vtkIdType vtkMatrixTree::GetLevelMemorySize(int level) const
+{
+  const auto& t = this->Internals->Tree;
+  return (this->Internals->Valid && level >= 0 && level < t.numLevels())
+    ? static_cast<vtkIdType>(t.levelBytes(level))
+    : 0;
+}
+vtkIdType vtkMatrixTree::GetLevelNumberOfBlocks(int level) const
+{
+  const auto& t = this->Internals->Tree;
+  return (this->Internals->Valid && level >= 0 && level < t.numLevels())
+    ? static_cast<vtkIdType>(t.levelBlocks(level))
+    : 0;
+}
+int vtkMatrixTree::GetLevelDimension(int level, int axis) const
+{
+  const auto& t = this->Internals->Tree;
+  return (this->Internals->Valid && level >= 0 && level < t.numLevels() && axis >= 0 && axis < 3)
+    ? t.dim(level, axis)
+    : 0;
+}
+double vtkMatrixTree::GetMedianTriangleExtent() const
+{
+  return this->Internals->Stats.medianPrimitiveExtent;
+}
+int vtkMatrixTree::GetNumberOfBuildPhases() const
+{
+  return static_cast<int>(this->Internals->Stats.phasesMs.size());
+}
+const char* vtkMatrixTree::GetBuildPhaseName(int i) const
+{
+  const auto& p = this->Internals->Stats.phasesMs;
+  return (i >= 0 && i < static_cast<int>(p.size())) ? p[i].first.c_str() : nullptr;
+}
+double vtkMatrixTree::GetBuildPhaseTime(int i) const
+{
+  const auto& p = this->Internals->Stats.phasesMs;
+  return (i >= 0 && i < static_cast<int>(p.size())) ? p[i].second : 0.0;
+}
+double vtkMatrixTree::GetBuildTime() const
+{
+  return this->Internals->Stats.totalMs;
+}
+
+//------------------------------------------------------------------------------
+void vtkMatrixTree::FindLeaves(vtkDataArray* points, vtkIntArray* result)
+{
+  if (!points || !result || points->GetNumberOfComponents() != 3)
+  {
+    vtkErrorMacro("FindLeaves: need an N x 3 points array and a result array.");
+    return;
+  }
+  if (!this->BuildIfNeeded())
+  {
+    return;
+  }
+  const vtkIdType n = points->GetNumberOfTuples();
+  result->SetNumberOfComponents(5);
+  result->SetNumberOfTuples(n);
+  const mtree::MatrixTree& tree = this->Internals->Tree;
+  int* out = result->GetPointer(0);
+  const int threads = mtree::resolveThreads(this->NumberOfThreads);
+#pragma omp parallel for num_threads(threads) schedule(static) if (n > 4096)
+  for (vtkIdType i = 0; i < n; ++i)
+  {
+    double p[3];
+    points->GetTuple(i, p);
+    const mtree::NodeRef r = tree.leafFind(mtree::Vec3(p));
+    int* o = out + 5 * i;
+    o[0] = r.level;
+    o[1] = r.c[0];
+    o[2] = r.c[1];
+    o[3] = r.c[2];
+    o[4] = r.exists ? 1 : 0;
+  }
+}
+
+//------------------------------------------------------------------------------
+vtkIdType vtkMatrixTree::IntersectRays(vtkDataArray* origins, vtkDataArray* directions, double tMax,
+  vtkDoubleArray* t, vtkIdTypeArray* cellIds)
+{
+  if (!origins || !directions || !t || !cellIds || origins->GetNumberOfComponents() != 3 ||
+    directions->GetNumberOfComponents() != 3 ||
+    origins->GetNumberOfTuples() != directions->GetNumberOfTuples())
+  {
+    vtkErrorMacro("IntersectRays: need N x 3 origins and directions of the same length, and output arrays.");
+    return 0;
+  }
+  if (!this->BuildIfNeeded())
+  {
+    return 0;
+  }
+  const vtkIdType n = origins->GetNumberOfTuples();
+  t->SetNumberOfComponents(1);
+  t->SetNumberOfTuples(n);
+  cellIds->SetNumberOfComponents(1);
+  cellIds->SetNumberOfTuples(n);
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  double* tOut = t->GetPointer(0);
+  vtkIdType* cOut = cellIds->GetPointer(0);
+  vtkIdType hits = 0, visits = 0, tests = 0;
+  const int threads = mtree::resolveThreads(this->NumberOfThreads);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 256) reduction(+ : hits, visits, tests)
+  for (vtkIdType i = 0; i < n; ++i)
+  {
+    double o[3], d[3];
+    origins->GetTuple(i, o);
+    directions->GetTuple(i, d);
+    mtree::RayHit h;
+    mtree::TraversalStats st;
+    if (mtree::intersectFirst(in.Tree, in.Mesh, mtree::Vec3(o), mtree::Vec3(d), 0.0, tMax, h, &st))
+    {
+      tOut[i] = h.t;
+      cOut[i] = in.CellOfTriangle[h.prim];
+      ++hits;
+    }
+    else
+    {
+      tOut[i] = std::numeric_limits<double>::infinity();
+      cOut[i] = -1;
+    }
+    visits += static_cast<vtkIdType>(st.nodeVisits);
+    tests += static_cast<vtkIdType>(st.primTests);
+  }
+  this->LastNodeVisits = visits;
+  this->LastTriangleTests = tests;
+  return hits;
+}
+
+//------------------------------------------------------------------------------
+void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
+{
+  this->Superclass::PrintSelf(os, indent);
+  os << indent << "DataSet: " << this->DataSet << "\n";
+  os << indent << "TreeType: " << (this->TreeType == KDTREE ? "KDTREE" : "OCTREE") << "\n";
+  os << indent << "Height: " << this->Height << (this->Height == 0 ? " (automatic)" : "") << "\n";
+  os << indent << "BlockSize: " << this->BlockSize << "\n";
+  os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";
+  os << indent << "LeafScale: " << this->LeafScale << "\n";
+  os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
+  os << indent << "ConversionTime: " << this->ConversionTime << " ms\n";
+  os << indent << "LastNodeVisits: " << this->LastNodeVisits << "\n";
+  os << indent << "LastTriangleTests: " << this->LastTriangleTests << "\n";
+  os << indent << "Built: " << (this->Internals->Valid ? "yes" : "no") << "\n";
+  if (this->Internals->Valid)
+  {
+    os << indent << "TreeHeight: " << this->GetTreeHeight() << "\n";
+    os << indent << "NumberOfTriangles: " << this->GetNumberOfTriangles() << "\n";
+    os << indent << "NumberOfLeaves: " << this->GetNumberOfLeaves() << "\n";
+    os << indent << "MemorySize: " << this->GetMemorySize() << " bytes\n";
+    os << indent << "BuildTime: " << this->GetBuildTime() << " ms\n";
+  }
+}

@@ -1,0 +1,200 @@
+#include "vtkMatrixTreeRayCaster.h"
+
+#include "vtkMatrixTree.h"
+#include "vtkMatrixTreeInternals.h"
+
+#include "vtkFloatArray.h"
+#include "vtkIdTypeArray.h"
+#include "vtkImageData.h"
+#include "vtkInformation.h"
+#include "vtkInformationVector.h"
+#include "vtkObjectFactory.h"
+#include "vtkPointData.h"
+#include "vtkPolyData.h"
+#include "vtkStreamingDemandDrivenPipeline.h"
+#include "vtkUnsignedCharArray.h"
+#include "vtkUnsignedIntArray.h"
+
+#include "mtree/render.h"
+
+#include <algorithm>
+#include <cmath>
+
+vtkStandardNewMacro(vtkMatrixTreeRayCaster);
+
+//------------------------------------------------------------------------------
+vtkMatrixTreeRayCaster::vtkMatrixTreeRayCaster()
+  : Tree(vtkMatrixTree::New())
+{
+  this->SetNumberOfInputPorts(1);
+  this->SetNumberOfOutputPorts(1);
+}
+
+vtkMatrixTreeRayCaster::~vtkMatrixTreeRayCaster()
+{
+  this->Tree->Delete();
+}
+
+vtkMTimeType vtkMatrixTreeRayCaster::GetMTime()
+{
+  return std::max(this->Superclass::GetMTime(), this->Tree->GetMTime());
+}
+
+int vtkMatrixTreeRayCaster::FillInputPortInformation(int, vtkInformation* info)
+{
+  info->Set(vtkAlgorithm::INPUT_REQUIRED_DATA_TYPE(), "vtkPolyData");
+  return 1;
+}
+
+//------------------------------------------------------------------------------
+int vtkMatrixTreeRayCaster::RequestInformation(
+  vtkInformation*, vtkInformationVector**, vtkInformationVector* outputVector)
+{
+  const int w = std::min(std::max(this->ImageSize[0], 1), 16384);
+  const int h = std::min(std::max(this->ImageSize[1], 1), 16384);
+  int extent[6] = { 0, w - 1, 0, h - 1, 0, 0 };
+  vtkInformation* outInfo = outputVector->GetInformationObject(0);
+  outInfo->Set(vtkStreamingDemandDrivenPipeline::WHOLE_EXTENT(), extent, 6);
+  vtkDataObject::SetPointDataActiveScalarInfo(outInfo, VTK_UNSIGNED_CHAR, 3);
+  return 1;
+}
+
+//------------------------------------------------------------------------------
+int vtkMatrixTreeRayCaster::RequestData(
+  vtkInformation*, vtkInformationVector** inputVector, vtkInformationVector* outputVector)
+{
+  vtkPolyData* input = vtkPolyData::GetData(inputVector[0], 0);
+  vtkImageData* output = vtkImageData::GetData(outputVector, 0);
+  if (!input || !output)
+  {
+    vtkErrorMacro("RequestData: missing input polydata or output image.");
+    return 0;
+  }
+  const int w = std::min(std::max(this->ImageSize[0], 1), 16384);
+  const int h = std::min(std::max(this->ImageSize[1], 1), 16384);
+  output->SetExtent(0, w - 1, 0, h - 1, 0, 0);
+  output->SetOrigin(0, 0, 0);
+  output->SetSpacing(1, 1, 1);
+
+  // Build (or reuse) the tree.
+  this->UpdateProgress(0.0);
+  if (this->Tree->GetDataSet() != input)
+  {
+    this->Tree->SetDataSet(input);
+  }
+  const vtkIdType buildsBefore = this->Tree->GetNumberOfBuilds();
+  if (!this->Tree->BuildIfNeeded())
+  {
+    vtkErrorMacro("RequestData: the matrix tree could not be built (see the error above).");
+    return 0;
+  }
+  this->LastRebuilt = this->Tree->GetNumberOfBuilds() != buildsBefore;
+  this->LastBuildTime = this->Tree->GetBuildTime();
+  this->UpdateProgress(0.3);
+
+  vtkMatrixTreeInternals& in = *this->Tree->GetInternals();
+  mtree::Box scene;
+  for (size_t i = 0; i < in.Mesh.numPoints(); ++i)
+  {
+    scene.extend(mtree::Vec3(&in.Mesh.points()[3 * i]));
+  }
+  mtree::Camera cam;
+  cam.width = w;
+  cam.height = h;
+  cam.fovyDegrees = this->ViewAngle;
+  if (this->AutoCamera && !scene.empty())
+  {
+    const mtree::Vec3 c = scene.center();
+    const double r = 0.5 * mtree::norm(scene.extent());
+    const double dist = r / std::sin(0.5 * this->ViewAngle * M_PI / 180.0) * 1.05;
+    const mtree::Vec3 dir = mtree::normalized(mtree::Vec3(0.35, 0.45, 1.0));
+    cam.target = c;
+    cam.eye = c + dir * dist;
+    cam.up = mtree::Vec3(0, 1, 0);
+    for (int k = 0; k < 3; ++k)
+    {
+      this->Position[k] = cam.eye[k];
+      this->FocalPoint[k] = cam.target[k];
+      this->ViewUp[k] = cam.up[k];
+    }
+  }
+  else
+  {
+    cam.eye = mtree::Vec3(this->Position);
+    cam.target = mtree::Vec3(this->FocalPoint);
+    cam.up = mtree::Vec3(this->ViewUp);
+  }
+  mtree::RenderOptions ro;
+  ro.shadows = this->Shadows;
+  ro.threads = this->NumberOfThreads;
+  const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh };
+  const mtree::RenderResult r = mtree::render(tracer, in.Mesh, scene, cam, ro);
+  this->UpdateProgress(0.9);
+
+  const vtkIdType npix = static_cast<vtkIdType>(w) * h;
+  vtkNew<vtkUnsignedCharArray> rgb;
+  rgb->SetName("RGB");
+  rgb->SetNumberOfComponents(3);
+  rgb->SetNumberOfTuples(npix);
+  std::copy(r.rgb.begin(), r.rgb.end(), rgb->GetPointer(0));
+  vtkNew<vtkUnsignedIntArray> visits;
+  visits->SetName("NodeVisits");
+  visits->SetNumberOfTuples(npix);
+  std::copy(r.nodeVisits.begin(), r.nodeVisits.end(), visits->GetPointer(0));
+  vtkNew<vtkUnsignedIntArray> tests;
+  tests->SetName("TriangleTests");
+  tests->SetNumberOfTuples(npix);
+  std::copy(r.primTests.begin(), r.primTests.end(), tests->GetPointer(0));
+  vtkNew<vtkFloatArray> depth;
+  depth->SetName("Depth");
+  depth->SetNumberOfTuples(npix);
+  std::copy(r.depth.begin(), r.depth.end(), depth->GetPointer(0));
+  vtkNew<vtkIdTypeArray> cells;
+  cells->SetName("CellId");
+  cells->SetNumberOfTuples(npix);
+  for (vtkIdType i = 0; i < npix; ++i)
+  {
+    const uint32_t p = r.hitPrim[i];
+    cells->SetValue(i, p == MT_NULL ? -1 : in.CellOfTriangle[p]);
+  }
+  output->GetPointData()->Initialize();
+  output->GetPointData()->SetScalars(rgb);
+  output->GetPointData()->AddArray(visits);
+  output->GetPointData()->AddArray(tests);
+  output->GetPointData()->AddArray(depth);
+  output->GetPointData()->AddArray(cells);
+
+  this->LastRenderTime = r.ms;
+  this->NumberOfPrimaryRays = static_cast<vtkIdType>(r.primaryRays);
+  this->NumberOfShadowRays = static_cast<vtkIdType>(r.shadowRays);
+  this->NumberOfHits = static_cast<vtkIdType>(r.hits);
+  this->TotalNodeVisits = static_cast<vtkIdType>(r.stats.nodeVisits);
+  this->TotalTriangleTests = static_cast<vtkIdType>(r.stats.primTests);
+  this->UpdateProgress(1.0);
+  return 1;
+}
+
+//------------------------------------------------------------------------------
+void vtkMatrixTreeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
+{
+  this->Superclass::PrintSelf(os, indent);
+  os << indent << "Tree:\n";
+  this->Tree->PrintSelf(os, indent.GetNextIndent());
+  os << indent << "ImageSize: " << this->ImageSize[0] << " x " << this->ImageSize[1] << "\n";
+  os << indent << "Position: " << this->Position[0] << " " << this->Position[1] << " " << this->Position[2] << "\n";
+  os << indent << "FocalPoint: " << this->FocalPoint[0] << " " << this->FocalPoint[1] << " "
+     << this->FocalPoint[2] << "\n";
+  os << indent << "ViewUp: " << this->ViewUp[0] << " " << this->ViewUp[1] << " " << this->ViewUp[2] << "\n";
+  os << indent << "ViewAngle: " << this->ViewAngle << "\n";
+  os << indent << "AutoCamera: " << (this->AutoCamera ? "On" : "Off") << "\n";
+  os << indent << "Shadows: " << (this->Shadows ? "On" : "Off") << "\n";
+  os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
+  os << indent << "LastBuildTime: " << this->LastBuildTime << " ms\n";
+  os << indent << "LastRenderTime: " << this->LastRenderTime << " ms\n";
+  os << indent << "LastRebuilt: " << this->LastRebuilt << "\n";
+  os << indent << "NumberOfPrimaryRays: " << this->NumberOfPrimaryRays << "\n";
+  os << indent << "NumberOfShadowRays: " << this->NumberOfShadowRays << "\n";
+  os << indent << "NumberOfHits: " << this->NumberOfHits << "\n";
+  os << indent << "TotalNodeVisits: " << this->TotalNodeVisits << "\n";
+  os << indent << "TotalTriangleTests: " << this->TotalTriangleTests << "\n";
+}

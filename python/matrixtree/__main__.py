@@ -1,0 +1,3 @@
+from matrixtree.cli import main
+
+raise SystemExit(main())
