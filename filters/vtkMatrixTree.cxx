@@ -130,6 +130,16 @@ vtkIdType vtkMatrixTree::GetLevelNumberOfBlocks(int level) const
     ? static_cast<vtkIdType>(t.levelBlocks(level))
     : 0;
 }
+void vtkMatrixTree::GetRootBounds(double bounds[6]) const
+{
+  const mtree::Box& b = this->Internals->Tree.rootBox();
+  const bool ok = this->Internals->Valid && !this->Internals->Tree.empty();
+  for (int a = 0; a < 3; ++a)
+  {
+    bounds[2 * a] = ok ? b.lo[a] : 0.0;
+    bounds[2 * a + 1] = ok ? b.hi[a] : -1.0;
+  }
+}
 int vtkMatrixTree::GetLevelDimension(int level, int axis) const
 {
   const auto& t = this->Internals->Tree;

@@ -116,6 +116,8 @@ public:
   vtkIdType GetMemorySize() const;
   vtkIdType GetLevelMemorySize(int level) const;
   vtkIdType GetLevelNumberOfBlocks(int level) const;
+  /** The root box (xmin, xmax, ymin, ymax, zmin, zmax): the triangles' bounds, slightly padded. */
+  void GetRootBounds(double bounds[6]) const;
   /** Nodes along `axis` at `level`. */
   int GetLevelDimension(int level, int axis) const;
   double GetMedianTriangleExtent() const;

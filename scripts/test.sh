@@ -18,7 +18,7 @@ T_CTEST=$((SECONDS - T1))
 
 # Debian's VTK renders only through X: give pytest a virtual display when
 # there is none, so pyvista/VTK rendering tests work headless.
-PYTEST=(.venv/bin/python -m pytest -q tests/python)
+PYTEST=(.venv/bin/python -m pytest -q)
 if [[ -z "${DISPLAY:-}" ]] && command -v xvfb-run >/dev/null; then
   PYTEST=(xvfb-run -a "${PYTEST[@]}")
 fi

@@ -182,10 +182,12 @@ class MatrixTree:
         return self
 
     def stats(self) -> dict:
-        """Build statistics: height, triangles, leaves, references, bytes, per-level bytes and
-        blocks, per-phase build times (ms) and the total build time (ms)."""
+        """Build statistics: height, triangles, leaves, references, bytes, per-level bytes,
+        blocks and node counts, the root box, per-phase build times (ms) and the total (ms)."""
         t = self._tree
         h = t.GetTreeHeight()
+        root = [0.0] * 6
+        t.GetRootBounds(root)
         return {
             "tree": "octree" if t.GetTreeType() == 0 else "kdtree",
             "height": h,
@@ -196,6 +198,8 @@ class MatrixTree:
             "level_bytes": [t.GetLevelMemorySize(l) for l in range(h + 1)],
             "level_blocks": [t.GetLevelNumberOfBlocks(l) for l in range(h + 1)],
             "leaf_dims": [t.GetLevelDimension(h, a) for a in range(3)],
+            "level_dims": [[t.GetLevelDimension(l, a) for a in range(3)] for l in range(h + 1)],
+            "root_bounds": root,
             "median_triangle_extent": t.GetMedianTriangleExtent(),
             "phases_ms": {t.GetBuildPhaseName(i): t.GetBuildPhaseTime(i)
                           for i in range(t.GetNumberOfBuildPhases())},

@@ -1,0 +1,71 @@
+"""Shared helpers of the benchmark programs: scenes, timing, tables, JSON."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(ROOT, "python"))
+
+import matrixtree  # noqa: E402
+from matrixtree import scenes  # noqa: E402
+
+
+def default_scene_paths() -> dict:
+    """Every mesh in ../shared/data/meshes plus the Utah Hand and Ben scenes."""
+    return scenes.real_scenes()
+
+
+def load(path: str):
+    return matrixtree.read_mesh(path)
+
+
+def median_time_ms(fn, repeats: int) -> tuple[float, list]:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append((time.perf_counter() - t0) * 1e3)
+    return statistics.median(times), times
+
+
+def machine() -> dict:
+    return {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+            "python": platform.python_version()}
+
+
+def table(rows: list, cols: list) -> str:
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.3g}" if abs(v) < 100 else f"{v:.1f}"
+        return str(v)
+
+    widths = [max(len(c), *(len(fmt(r.get(c, ""))) for r in rows)) for c in cols]
+    out = ["  ".join(c.rjust(w) for c, w in zip(cols, widths)), "  ".join("-" * w for w in widths)]
+    for r in rows:
+        out.append("  ".join(fmt(r.get(c, "")).rjust(w) for c, w in zip(cols, widths)))
+    return "\n".join(out)
+
+
+def markdown(rows: list, cols: list) -> str:
+    def fmt(v):
+        if isinstance(v, float):
+            return f"{v:.3g}" if abs(v) < 100 else f"{v:.1f}"
+        return str(v)
+
+    out = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
+    for r in rows:
+        out.append("| " + " | ".join(fmt(r.get(c, "")) for c in cols) + " |")
+    return "\n".join(out)
+
+
+def write_json(path: str, rows: list) -> None:
+    os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
+    with open(path, "w") as f:
+        json.dump(rows, f, indent=1)

@@ -1,0 +1,164 @@
+"""Tests of the matrixtree package on real data, against brute force and analytic answers."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+import matrixtree
+from matrixtree import scenes
+
+DATA = scenes.data_dir()
+BUNNY = os.path.join(DATA, "meshes", "bunny.ply")
+HAND = os.path.join(DATA, "scenes", "utah_hand", "hand_00.obj")
+
+
+def triangles(mesh):
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    pts = vtk_to_numpy(mesh.GetPoints().GetData()).astype(np.float64)
+    conn = vtk_to_numpy(mesh.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+    return pts[conn]  # (T, 3, 3)
+
+
+def brute_force_first_hit(tris, o, d):
+    """Möller–Trumbore over all triangles, vectorised over triangles, one ray at a time."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    out_t = np.full(len(o), np.inf)
+    out_id = np.full(len(o), -1)
+    for r in range(len(o)):
+        p = np.cross(d[r], e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / det
+            s = o[r] - a
+            u = np.einsum("ij,ij->i", s, p) * inv
+            q = np.cross(s, e1)
+            v = (q @ d[r]) * inv
+            t = np.einsum("ij,ij->i", e2, q) * inv
+        ok = (det != 0) & (u >= 0) & (u <= 1) & (v >= 0) & (u + v <= 1) & (t >= 0)
+        if ok.any():
+            ids = np.nonzero(ok)[0]
+            k = ids[np.argmin(t[ids])]
+            out_t[r], out_id[r] = t[k], k
+    return out_t, out_id
+
+
+def seeded_rays(mesh, n, seed):
+    b = np.array(mesh.GetBounds()).reshape(3, 2)
+    lo, hi = b[:, 0], b[:, 1]
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    o = (lo + hi) / 2 + u * np.linalg.norm(hi - lo)
+    return o, lo + rng.random((n, 3)) * (hi - lo) - o
+
+
+@pytest.mark.parametrize("path", [BUNNY, HAND])
+@pytest.mark.parametrize("kind", ["octree", "kdtree"])
+def test_first_hits_equal_brute_force(path, kind):
+    mesh = matrixtree.read_mesh(path)
+    tree = matrixtree.MatrixTree(mesh, tree=kind)
+    o, d = seeded_rays(mesh, 300, seed=3)
+    t, cell = tree.intersect(o, d)
+    bt, bid = brute_force_first_hit(triangles(mesh), o, d)
+    assert np.array_equal(np.isfinite(t), np.isfinite(bt))
+    hit = np.isfinite(bt)
+    assert hit.sum() > 100  # the rays were aimed into the box: most must hit
+    same = (cell[hit] == bid[hit]) | (np.abs(t[hit] - bt[hit]) <= 1e-9 * np.maximum(1, np.abs(bt[hit])))
+    assert same.all()
+    assert tree.last_query_counters["triangle_tests"] > 0
+
+
+def test_find_leaves_point_lies_in_its_node():
+    mesh = matrixtree.read_mesh(BUNNY)
+    tree = matrixtree.MatrixTree(mesh)
+    s = tree.stats()
+    b = np.array(mesh.GetBounds()).reshape(3, 2)
+    rng = np.random.default_rng(1)
+    p = b[:, 0] + rng.random((20000, 3)) * (b[:, 1] - b[:, 0])
+    res = tree.find_leaves(p)
+    assert res.shape == (20000, 5)
+    assert (res[:, 0] >= 1).all() and (res[:, 0] <= s["height"]).all()
+    assert res[:, 4].any() and not res[:, 4].all()
+    # Every point lies in the node returned for it, whatever its level.
+    root = np.array(s["root_bounds"]).reshape(3, 2)
+    dims = np.array(s["level_dims"])[res[:, 0]]  # nodes per axis at each point's level
+    cell = (root[:, 1] - root[:, 0]) / dims
+    lo = root[:, 0] + res[:, 1:4] * cell
+    assert ((p >= lo - 1e-12) & (p <= lo + cell + 1e-12)).all()
+    # Existing leaves are bottom-level nodes.
+    assert (res[res[:, 4] == 1, 0] == s["height"]).all()
+    outside = tree.find_leaves(b[:, 1] + 1.0)
+    assert outside[0, 0] == -1
+
+
+def test_rebuild_only_when_mesh_changes():
+    from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+
+    mesh = scenes.default_scene(resolution=0.25)
+    first = matrixtree.render(mesh, size=(32, 32))
+    again = matrixtree.render(mesh, size=(32, 32), caster=first["caster"])
+    assert first["rebuilt"] and not again["rebuilt"]
+    pts = vtk_to_numpy(mesh.GetPoints().GetData()).astype(np.float64) * 1.01
+    mesh.GetPoints().SetData(numpy_to_vtk(pts, deep=True))
+    moved = matrixtree.render(mesh, size=(32, 32), caster=first["caster"])
+    assert moved["rebuilt"]
+
+
+def test_render_sphere_matches_analytic_disc():
+    from vtkmodules.vtkFiltersSources import vtkSphereSource
+
+    s = vtkSphereSource()
+    s.SetRadius(1.0)
+    s.SetThetaResolution(256)
+    s.SetPhiResolution(256)
+    s.Update()
+    dist, fov, w = 6.0, 30.0, 200
+    img = matrixtree.render(s.GetOutput(), size=(w, w), camera=[(0, 0, dist), (0, 0, 0), (0, 1, 0), fov])
+    hit = np.isfinite(img["depth"])
+    # Projected disc: the sphere subtends a cone of half-angle asin(r / dist).
+    half = math.tan(math.asin(1.0 / dist)) / math.tan(math.radians(fov / 2)) * w / 2
+    assert abs(hit.sum() / (math.pi * half**2) - 1) < 0.02
+    # Centre pixel: t = dist - r, to the tessellation's accuracy.
+    assert abs(img["depth"][w // 2, w // 2] - (dist - 1.0)) < 2e-3
+    assert (img["node_visits"][hit] > 0).all()
+
+
+def test_bad_input_errors():
+    mesh = matrixtree.read_mesh(HAND)
+    with pytest.raises(ValueError, match="tree must be one of"):
+        matrixtree.MatrixTree(mesh, tree="bvh")
+    with pytest.raises(ValueError, match="block_size"):
+        matrixtree.MatrixTree(mesh, block_size=3)
+    tree = matrixtree.MatrixTree(mesh)
+    with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
+        tree.intersect(np.zeros((4, 2)), np.zeros((4, 2)))
+    with pytest.raises(FileNotFoundError):
+        matrixtree.read_mesh("/nonexistent/mesh.ply")
+    # NaN coordinates: a clear error, not a crash.
+    from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+
+    bad = matrixtree.read_mesh(HAND)
+    pts = vtk_to_numpy(bad.GetPoints().GetData()).astype(np.float64)
+    pts[5, 1] = np.nan
+    bad.GetPoints().SetData(numpy_to_vtk(pts, deep=True))
+    with pytest.raises(RuntimeError, match="non-finite"):
+        matrixtree.MatrixTree(bad)
+    # NaN rays miss instead of hanging.
+    t, c = tree.intersect([[np.nan, 0, 0]], [[1, 0, 0]])
+    assert np.isinf(t[0]) and c[0] == -1
+
+
+def test_empty_mesh_misses_everything():
+    from vtkmodules.vtkCommonDataModel import vtkPolyData
+    from vtkmodules.vtkCommonCore import vtkPoints
+
+    pd = vtkPolyData()
+    pd.SetPoints(vtkPoints())
+    tree = matrixtree.MatrixTree(pd)
+    t, c = tree.intersect([[0, 0, 0]], [[1, 0, 0]])
+    assert np.isinf(t[0]) and c[0] == -1
+    assert tree.find_leaves([[0, 0, 0]])[0, 0] == -1
