@@ -65,7 +65,7 @@ def markdown(rows: list, cols: list) -> str:
     return "\n".join(out)
 
 
-def write_json(path: str, rows: list) -> None:
+def write_json(path: str, rows) -> None:
     os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
     with open(path, "w") as f:
         json.dump(rows, f, indent=1)

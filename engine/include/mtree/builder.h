@@ -138,6 +138,18 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   tree.height_ = H;
   tree.empty_ = false;
   tree.logDims_ = levelShapes(opt.kind, ext, H);
+  {
+    // The bottom level's pointer matrix is dense over the root box: refuse heights whose pointer
+    // matrix alone would pass 1 GiB rather than exhaust memory.
+    const int lb = ceilLog2(static_cast<uint64_t>(opt.blockEdge));
+    uint64_t ptrs = 1;
+    for (int a = 0; a < 3; ++a) ptrs <<= std::max(0, tree.logDims_[H][a] - lb);
+    if (ptrs * sizeof(uint32_t) > (uint64_t{1} << 30))
+      throw std::length_error("MatrixTree: height " + std::to_string(H) + " needs a " +
+                              std::to_string(ptrs * sizeof(uint32_t) >> 20) +
+                              " MiB pointer matrix at the leaf level (limit 1024 MiB); lower the height "
+                              "or raise the block edge");
+  }
   tree.cellSize_.resize(H + 1);
   for (int l = 0; l <= H; ++l)
     for (int a = 0; a < 3; ++a) tree.cellSize_[l][a] = std::ldexp(ext[a], -tree.logDims_[l][a]);
