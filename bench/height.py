@@ -17,6 +17,7 @@ import os
 
 from _common import default_scene_paths, load, machine, markdown, table, write_json
 import matrixtree
+from matrixtree_vtk import vtkMatrixTreeRayCaster
 
 
 def main() -> int:
@@ -26,6 +27,8 @@ def main() -> int:
     p.add_argument("--repeats", type=int, default=3, help="renders per height; the fastest counts")
     p.add_argument("--json", default="out/bench_height.json")
     p.add_argument("--markdown", default=None)
+    p.add_argument("--leaf-scale", type=float, default=2.0, help="leafScale of the automatic rule (default 2)")
+    p.add_argument("--builds", type=int, default=5, help="builds per height; the median counts (default 5)")
     a = p.parse_args()
     paths = a.scene or list(default_scene_paths().values())
     rows, summary = [], []
@@ -38,11 +41,12 @@ def main() -> int:
         name = os.path.splitext(os.path.basename(path))[0]
         mesh = load(path)
         for kind in ("octree", "kdtree"):
-            auto_h = matrixtree.MatrixTree(mesh, tree=kind).stats()["height"]
+            auto_h = matrixtree.MatrixTree(mesh, tree=kind, leaf_scale=a.leaf_scale).stats()["height"]
             span = 3 if kind == "octree" else 7
             heights = [0] + [h for h in range(max(1, auto_h - span), auto_h + span + 1)]
             res = {}
-            caster = None
+            caster = vtkMatrixTreeRayCaster()
+            caster.GetTree().SetLeafScale(a.leaf_scale)
             for h in heights:
                 best = None
                 for _ in range(a.repeats):
@@ -51,9 +55,15 @@ def main() -> int:
                     if best is None or img["render_ms"] < best["render_ms"]:
                         best = img
                 tree = caster.GetTree()
-                r = {"scene": name, "tree": kind, "height_setting": "auto" if h == 0 else h,
+                tree.SetLeafScale(a.leaf_scale)
+                builds = []
+                for _ in range(a.builds):  # median of warm rebuilds, as in a per-frame rebuild
+                    tree.Build()
+                    builds.append(tree.GetBuildTime())
+                builds.sort()
+                r = {"leaf_scale": a.leaf_scale, "scene": name, "tree": kind, "height_setting": "auto" if h == 0 else h,
                      "height": tree.GetTreeHeight(), "triangles": mesh.GetNumberOfPolys(),
-                     "render_ms": best["render_ms"], "build_ms": tree.GetBuildTime(),
+                     "render_ms": best["render_ms"], "build_ms": builds[len(builds) // 2],
                      "bytes": tree.GetMemorySize(),
                      "node_visits_per_ray": best["node_visits_per_ray"],
                      "tri_tests_per_ray": best["triangle_tests_per_ray"]}
@@ -63,7 +73,7 @@ def main() -> int:
             best_h = min(fixed, key=lambda h: fixed[h]["render_ms"])
             best_total = min(fixed, key=lambda h: fixed[h]["render_ms"] + fixed[h]["build_ms"])
             auto = res[0]
-            summary.append({"scene": name, "tree": kind, "auto_height": auto["height"], "best_height": best_h,
+            summary.append({"leaf_scale": a.leaf_scale, "scene": name, "tree": kind, "auto_height": auto["height"], "best_height": best_h,
                             "render_ms_auto": auto["render_ms"], "render_ms_best": fixed[best_h]["render_ms"],
                             "render_ratio_auto_to_best": auto["render_ms"] / fixed[best_h]["render_ms"],
                             "best_height_build_plus_render": best_total,

@@ -54,6 +54,7 @@ class BlockSparseMatrix {
     empty_ = emptyValue;
     ptr_.assign(static_cast<size_t>(ptrCount), MT_NULL);
     data_.clear();
+    blockPos_.clear();
     desc_.numBlocks = 0;
   }
 
@@ -99,6 +100,7 @@ class BlockSparseMatrix {
     if (!inRange(i, j, k)) throw std::out_of_range("BlockSparseMatrix::insert: index out of range");
     uint32_t& b = ptr_[pointerIndex(i, j, k)];
     if (b == MT_NULL) {
+      blockPos_.push_back(static_cast<uint32_t>(pointerIndex(i, j, k)));
       b = desc_.numBlocks++;
       data_.resize(static_cast<size_t>(desc_.numBlocks) * desc_.blockVolume, empty_);
     }
@@ -112,12 +114,29 @@ class BlockSparseMatrix {
     const size_t n = ptr_.size();
     const uint64_t total = exclusiveScan(marks, ptr_.data(), n, threads);
     if (total * desc_.blockVolume >= MT_NULL) throw std::length_error("BlockSparseMatrix: too many blocks");
+    blockPos_.resize(static_cast<size_t>(total));
 #pragma omp parallel for num_threads(threads) schedule(static) if (n > 65536)
-    for (int64_t i = 0; i < static_cast<int64_t>(n); ++i)
-      if (!marks[i]) ptr_[i] = MT_NULL;
+    for (int64_t i = 0; i < static_cast<int64_t>(n); ++i) {
+      if (marks[i]) blockPos_[ptr_[i]] = static_cast<uint32_t>(i);
+      else ptr_[i] = MT_NULL;
+    }
     desc_.numBlocks = static_cast<uint32_t>(total);
     data_.assign(static_cast<size_t>(total) * desc_.blockVolume, empty_);
     return desc_.numBlocks;
+  }
+
+  /// Coordinates of the entry at flat storage index s (inverse of storageIndex). Only for
+  /// matrices filled by allocateMarked(), which records every block's pointer-matrix position.
+  void entryCoords(uint32_t s, int c[3]) const {
+    const uint32_t b = s / desc_.blockVolume, local = s % desc_.blockVolume;
+    const uint32_t p = blockPos_[b];
+    const int bx = static_cast<int>(p % desc_.ptrDims[0]);
+    const int by = static_cast<int>((p / desc_.ptrDims[0]) % desc_.ptrDims[1]);
+    const int bz = static_cast<int>(p / (uint32_t(desc_.ptrDims[0]) * desc_.ptrDims[1]));
+    const uint32_t mx = (1u << desc_.logBlock[0]) - 1, my = (1u << desc_.logBlock[1]) - 1;
+    c[0] = (bx << desc_.logBlock[0]) | static_cast<int>(local & mx);
+    c[1] = (by << desc_.logBlock[1]) | static_cast<int>((local >> desc_.logBlock[0]) & my);
+    c[2] = (bz << desc_.logBlock[2]) | static_cast<int>(local >> (desc_.logBlock[0] + desc_.logBlock[1]));
   }
 
   const std::vector<uint32_t>& pointers() const { return ptr_; }
@@ -132,6 +151,7 @@ class BlockSparseMatrix {
   MtSparseDesc desc_{};
   std::vector<uint32_t> ptr_;
   std::vector<T> data_;
+  std::vector<uint32_t> blockPos_;  // pointer-matrix position of every allocated block
   T empty_{};
 };
 

@@ -58,6 +58,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     throw std::invalid_argument("MatrixTree: block edge must be a power of two in [1, 32], got " +
                                 std::to_string(opt.blockEdge));
   if (!(opt.leafScale > 0)) throw std::invalid_argument("MatrixTree: leafScale must be > 0");
+  if (!(opt.maxCandidates >= 1)) throw std::invalid_argument("MatrixTree: maxCandidates must be >= 1");
   if (prims.size() >= MT_NULL) throw std::length_error("MatrixTree: too many primitives for 32-bit indices");
 
   const int threads = resolveThreads(opt.threads);
@@ -81,13 +82,19 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   if (n > 0 && !(isFinite(root.lo) && isFinite(root.hi)))
     throw std::invalid_argument("MatrixTree: a primitive has non-finite coordinates (NaN or inf)");
 
-  tree = MatrixTree{};
+  // Reset the tree but keep its storage and work arrays: their capacity is reused.
+  auto& scratch = tree.scratch_;
+  scratch.values.swap(tree.prims_);
+  tree.prims_.clear();
+  tree.root_ = Box{};
+  tree.invLeaf_ = Vec3();
   tree.kind_ = opt.kind;
   tree.blockEdge_ = opt.blockEdge;
   if (stats) stats->primitives = static_cast<uint64_t>(n);
   if (n == 0) {
     tree.empty_ = true;
     tree.height_ = 0;
+    tree.inner_.clear();
     tree.logDims_.assign(1, {0, 0, 0});
     tree.cellSize_.assign(1, Vec3(1, 1, 1));
     tree.root_ = Box{};
@@ -121,15 +128,34 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     // (its standard error is ~1% of the spread, far below the factor 2 between heights).
     const int64_t stride = std::max<int64_t>(1, n / 8192);
     std::vector<double> sizes;
+    std::vector<Box> sample;
     sizes.reserve(static_cast<size_t>(n / stride + 1));
+    sample.reserve(sizes.capacity());
     for (int64_t i = 0; i < n; i += stride) {
-      const Vec3 e = prims.bounds(i).extent();
+      sample.push_back(prims.bounds(i));
+      const Vec3 e = sample.back().extent();
       sizes.push_back(std::max(e.x, std::max(e.y, e.z)));
     }
     std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
     double med = sizes[sizes.size() / 2];
     if (!(med > 0)) med = std::max(ext.x, std::max(ext.y, ext.z)) * 1e-3;  // degenerate primitives
     H = chooseHeight(opt.kind, ext, med, opt.leafScale);
+    // Mean number of candidate leaves (bounding-box cells) of the sampled primitives at H.
+    auto meanCandidates = [&](int h) {
+      const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
+      double sum = 0;
+      for (const Box& b : sample) {
+        double c = 1;
+        for (int a = 0; a < 3; ++a) {
+          const double inv = std::ldexp(1.0, ld[a]) / ext[a];
+          const int hiCell = (1 << ld[a]) - 1;
+          c *= cellIndex((b.hi[a] - root.lo[a]) * inv, 0, hiCell) - cellIndex((b.lo[a] - root.lo[a]) * inv, 0, hiCell) + 1;
+        }
+        sum += c;
+      }
+      return sum / static_cast<double>(sample.size());
+    };
+    while (H > 0 && meanCandidates(H) > opt.maxCandidates) --H;
     if (stats) {
       stats->autoHeight = true;
       stats->medianPrimitiveExtent = med;
@@ -185,17 +211,22 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   // ---- count + mark (step 2) ------------------------------------------------------------------
   // The exact test's verdicts for the first 64 candidates are kept as a bit mask, so the pair
   // writing of step 6 repeats no overlap test for all but the largest primitives.
-  std::vector<uint32_t> counts(static_cast<size_t>(n));
-  std::vector<uint64_t> masks(exact ? static_cast<size_t>(n) : 0);
-  std::vector<uint8_t> marks(tree.leaves_.pointerCount(), 0);
+  std::vector<uint32_t>& counts = scratch.counts;
+  std::vector<uint64_t>& masks = scratch.masks;
+  std::vector<uint8_t>& marks = scratch.marks;
+  counts.resize(static_cast<size_t>(n));
+  masks.resize(exact ? static_cast<size_t>(n) : 0);
+  marks.assign(tree.leaves_.pointerCount(), 0);
   const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
   for (int64_t i = 0; i < n; ++i) {
     const auto prim = prims.local(i);
     int lo[3], hi[3];
     cellRange(prim.bounds(), lo, hi);
-    const bool single = lo[0] == hi[0] && lo[1] == hi[1] && lo[2] == hi[2];
-    const bool test = exact && !single;
+    // A candidate range one cell thick along two axes needs no test: the triangle is convex, so
+    // it meets every slab of the third axis within its range, inside the one cell of the others.
+    const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
+    const bool test = exact && thin < 2;
     const auto tester = prim.tester(test ? half : Vec3());
     uint32_t c = 0, cand = 0;
     uint64_t mask = 0;
@@ -223,13 +254,17 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   clock.lap("alloc");
 
   // ---- scan counts (step 5) -------------------------------------------------------------------
-  std::vector<uint32_t> offsets(static_cast<size_t>(n));
+  std::vector<uint32_t>& offsets = scratch.offsets;
+  offsets.resize(static_cast<size_t>(n));
   const uint64_t numPairs = exclusiveScan(counts.data(), offsets.data(), static_cast<size_t>(n), threads);
   if (numPairs >= MT_NULL) throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
   clock.lap("scan");
 
   // ---- write pairs (step 6) -------------------------------------------------------------------
-  std::vector<uint32_t> keys(numPairs), values(numPairs);
+  std::vector<uint32_t>& keys = scratch.keys;
+  std::vector<uint32_t>& values = scratch.values;
+  keys.resize(numPairs);
+  values.resize(numPairs);
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
   for (int64_t i = 0; i < n; ++i) {
     const auto prim = prims.local(i);
@@ -238,12 +273,15 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     uint32_t out = offsets[i];
     uint32_t cand = 0;
     const uint64_t mask = exact ? masks[i] : ~uint64_t{0};
-    const bool big = exact && uint64_t(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) > 64;
+    // Same decision rule as the count pass; beyond the 64 masked candidates it is re-evaluated.
+    const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
+    const bool test = exact && thin < 2;
+    const bool big = test && uint64_t(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) > 64;
     const auto tester = prim.tester(big ? half : Vec3());
     for (int k = lo[2]; k <= hi[2]; ++k)
       for (int j = lo[1]; j <= hi[1]; ++j)
         for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
-          const bool in = cand < 64 ? ((mask >> cand) & 1) != 0 : (!exact || tester.overlaps(cellCentre(ii, j, k)));
+          const bool in = cand < 64 ? ((mask >> cand) & 1) != 0 : (!test || tester.overlaps(cellCentre(ii, j, k)));
           if (!in) continue;
           keys[out] = leaves.storageIndex(ii, j, k);
           values[out] = static_cast<uint32_t>(i);
@@ -254,9 +292,8 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
 
   // ---- radix sort by node (step 7) ------------------------------------------------------------
   {
-    std::vector<uint32_t> tk, tv;
     const uint64_t maxKey = uint64_t(tree.leaves_.numBlocks()) * tree.leaves_.blockVolume();
-    radixSortPairs(keys, values, ceilLog2(std::max<uint64_t>(maxKey, 2)), threads, tk, tv);
+    radixSortPairs(keys, values, ceilLog2(std::max<uint64_t>(maxKey, 2)), threads, scratch.tmpKeys, scratch.tmpValues);
   }
   clock.lap("sort");
 
@@ -264,15 +301,18 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   {
     MtLeafRange* data = tree.leaves_.data().data();
     const int64_t m = static_cast<int64_t>(numPairs);
-#pragma omp parallel for num_threads(threads) schedule(static)
+    uint64_t leafCount = 0;
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : leafCount)
     for (int64_t i = 0; i < m; ++i) {
       if (i == 0 || keys[i] != keys[i - 1]) {
+        ++leafCount;
         data[keys[i]].begin = static_cast<uint32_t>(i);
         if (i > 0) data[keys[i - 1]].end = static_cast<uint32_t>(i);
       }
     }
     if (m > 0) data[keys[m - 1]].end = static_cast<uint32_t>(m);
-    tree.prims_ = std::move(values);
+    tree.prims_.swap(values);
+    if (stats) stats->leaves = leafCount;
   }
   clock.lap("offsets");
 
@@ -301,39 +341,28 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       pmarks[parent.pointerIndex(i, j, k)] = 1;
     }
     parent.allocateMarked(pmarks.data(), threads);
-    // Fill each parent block from its children (gather: one writer per block, no atomics).
-    const MtSparseDesc& pd = parent.desc();
-    const std::vector<uint32_t>& pptr = parent.pointers();
+    // Scatter existence from every existing child entry to its parent (a byte store of 1 by
+    // every writer: the result does not depend on their order). Only allocated child entries
+    // are read, contiguously.
     uint8_t* pdata = parent.data().data();
-    const int64_t npp = static_cast<int64_t>(pptr.size());
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 16) if (npp > 64)
-    for (int64_t p = 0; p < npp; ++p) {
-      if (pptr[p] == MT_NULL) continue;
-      const int bx = static_cast<int>(p % pd.ptrDims[0]);
-      const int by = static_cast<int>((p / pd.ptrDims[0]) % pd.ptrDims[1]);
-      const int bz = static_cast<int>(p / (int64_t(pd.ptrDims[0]) * pd.ptrDims[1]));
-      const int e0 = 1 << pd.logBlock[0], e1 = 1 << pd.logBlock[1], e2 = 1 << pd.logBlock[2];
-      for (int dz = 0; dz < e2; ++dz)
-        for (int dy = 0; dy < e1; ++dy)
-          for (int dx = 0; dx < e0; ++dx) {
-            const int i = (bx << pd.logBlock[0]) + dx, j = (by << pd.logBlock[1]) + dy,
-                      k = (bz << pd.logBlock[2]) + dz;
-            if (!parent.inRange(i, j, k)) continue;
-            uint8_t any = 0;
-            for (int cz = 0; cz < (1 << sh[2]) && !any; ++cz)
-              for (int cy = 0; cy < (1 << sh[1]) && !any; ++cy)
-                for (int cx = 0; cx < (1 << sh[0]) && !any; ++cx) {
-                  const int cc[3] = {(i << sh[0]) + cx, (j << sh[1]) + cy, (k << sh[2]) + cz};
-                  any = tree.nodeExists(l + 1, cc) ? 1 : 0;
-                }
-            pdata[size_t(pptr[p]) * pd.blockVolume + parent.localIndex(i, j, k)] = any;
-          }
+    const int64_t nce = int64_t(l + 1 == H ? tree.leaves_.data().size() : tree.inner_[l + 1].data().size());
+    const MtLeafRange* leafData = tree.leaves_.data().data();
+    const uint8_t* innerData = l + 1 == H ? nullptr : tree.inner_[l + 1].data().data();
+#pragma omp parallel for num_threads(threads) schedule(static) if (nce > 16384)
+    for (int64_t e = 0; e < nce; ++e) {
+      const bool exists = innerData ? innerData[e] != 0 : leafData[e].begin != MT_NULL;
+      if (!exists) continue;
+      int c[3];
+      if (innerData) tree.inner_[l + 1].entryCoords(static_cast<uint32_t>(e), c);
+      else tree.leaves_.entryCoords(static_cast<uint32_t>(e), c);
+      const uint32_t s = parent.storageIndex(c[0] >> sh[0], c[1] >> sh[1], c[2] >> sh[2]);
+#pragma omp atomic write
+      pdata[s] = 1;
     }
   }
   clock.lap("propagate");
   if (stats) {
     stats->references = numPairs;
-    stats->leaves = tree.numLeaves();
   }
   clock.finish();
 }

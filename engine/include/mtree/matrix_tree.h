@@ -39,8 +39,12 @@ struct BuildOptions {
   /// Exact: separating-axis test per candidate leaf; BoundingBox: every leaf the primitive's box
   /// touches (faster build, more references, more primitive tests per ray).
   OverlapMode overlap = OverlapMode::Exact;
-  /// Automatic height: the leaf extent targeted is leafScale x the median primitive extent.
+  /// Automatic height: the leaf extent targeted is leafScale x the median primitive extent...
   double leafScale = 2.0;
+  /// ...then one level up at a time while the primitives' bounding boxes cover more than this
+  /// many candidate leaves on average (sampled): caps build cost and memory for scenes whose
+  /// median hides many large primitives. About 0.4-0.7 of the candidates become references.
+  double maxCandidates = 8.0;
   /// OpenMP threads; 0 = OpenMP's default.
   int threads = 0;
 };
@@ -159,6 +163,15 @@ class MatrixTree {
   std::vector<BlockSparseMatrix<uint8_t>> inner_;  // levels 0..H-1
   BlockSparseMatrix<MtLeafRange> leaves_;          // level H
   std::vector<uint32_t> prims_;
+
+  // Work arrays of the build, kept between builds so that rebuilding every frame does not pay
+  // for allocating and first-touching them again (the paper's §6 remark on memory handling).
+  struct BuildScratch {
+    std::vector<uint32_t> counts, offsets, keys, values, tmpKeys, tmpValues;
+    std::vector<uint64_t> masks;
+    std::vector<uint8_t> marks;
+  };
+  BuildScratch scratch_;
 };
 
 /// floor(x) clamped to [lo, hi], clamping in floating point first so a huge x cannot overflow.
