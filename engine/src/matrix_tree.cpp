@@ -23,11 +23,12 @@ std::vector<std::array<int, 3>> levelShapes(TreeKind kind, Vec3 e, int height) {
   return shapes;
 }
 
-int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double leafScale) {
+int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double leafScale, int blockEdge) {
   const double target = leafScale * medianExtent;
-  // Deep enough for the target leaf size, never so deep that the bottom level's pointer matrix
-  // (2^sum(logDims) / B^3 cells) outgrows what the primitives need: at most 2^33 bottom nodes.
-  constexpr int kMaxLogNodes = 33;
+  // Deep enough for the target leaf size, but the leaf level's dense pointer matrix stays at most
+  // 2^24 cells (64 MiB), and no axis gets more than 2^30 nodes.
+  const int lb = ceilLog2(static_cast<uint64_t>(std::max(blockEdge, 1)));
+  constexpr int kMaxLogPointers = 24, kMaxLogAxis = 30;
   const int maxH = kind == TreeKind::Octree ? 24 : MT_MAX_LEVELS - 1;
   Vec3 cell = rootExtent;
   int h = 0;
@@ -45,7 +46,9 @@ int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double lea
       ++ns[a];
       nc[a] *= 0.5;
     }
-    if (ns[0] + ns[1] + ns[2] > kMaxLogNodes) break;
+    int logPtr = 0;
+    for (int a = 0; a < 3; ++a) logPtr += std::max(0, ns[a] - lb);
+    if (logPtr > kMaxLogPointers || std::max(ns[0], std::max(ns[1], ns[2])) > kMaxLogAxis) break;
     s = ns;
     cell = nc;
     ++h;

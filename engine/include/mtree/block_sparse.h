@@ -46,7 +46,10 @@ class BlockSparseMatrix {
     for (int a = 0; a < 3; ++a) {
       desc_.dims[a] = n[a];
       desc_.logBlock[a] = std::min(lb, ceilLog2(static_cast<uint64_t>(n[a])));
-      desc_.ptrDims[a] = (n[a] + (1 << desc_.logBlock[a]) - 1) >> desc_.logBlock[a];
+      desc_.ptrDims[a] = static_cast<int>((int64_t(n[a]) + (int64_t(1) << desc_.logBlock[a]) - 1) >> desc_.logBlock[a]);
+      // Checked before multiplying, so a huge matrix cannot wrap around 2^64.
+      if (ptrCount > (uint64_t(MT_NULL) - 1) / static_cast<uint64_t>(desc_.ptrDims[a]))
+        throw std::length_error("BlockSparseMatrix: pointer matrix too large (more than 2^32 blocks)");
       ptrCount *= static_cast<uint64_t>(desc_.ptrDims[a]);
     }
     desc_.blockVolume = 1u << (desc_.logBlock[0] + desc_.logBlock[1] + desc_.logBlock[2]);

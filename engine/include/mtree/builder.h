@@ -88,6 +88,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   tree.prims_.clear();
   tree.root_ = Box{};
   tree.invLeaf_ = Vec3();
+  tree.empty_ = true;  // until the build completes: a build that throws leaves an empty tree
   tree.kind_ = opt.kind;
   tree.blockEdge_ = opt.blockEdge;
   if (stats) stats->primitives = static_cast<uint64_t>(n);
@@ -139,7 +140,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
     double med = sizes[sizes.size() / 2];
     if (!(med > 0)) med = std::max(ext.x, std::max(ext.y, ext.z)) * 1e-3;  // degenerate primitives
-    H = chooseHeight(opt.kind, ext, med, opt.leafScale);
+    H = chooseHeight(opt.kind, ext, med, opt.leafScale, opt.blockEdge);
     // Mean number of candidate leaves (bounding-box cells) of the sampled primitives at H.
     auto meanCandidates = [&](int h) {
       const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
@@ -162,19 +163,20 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     }
   }
   tree.height_ = H;
-  tree.empty_ = false;
   tree.logDims_ = levelShapes(opt.kind, ext, H);
   {
     // The bottom level's pointer matrix is dense over the root box: refuse heights whose pointer
     // matrix alone would pass 1 GiB rather than exhaust memory.
     const int lb = ceilLog2(static_cast<uint64_t>(opt.blockEdge));
-    uint64_t ptrs = 1;
-    for (int a = 0; a < 3; ++a) ptrs <<= std::max(0, tree.logDims_[H][a] - lb);
-    if (ptrs * sizeof(uint32_t) > (uint64_t{1} << 30))
-      throw std::length_error("MatrixTree: height " + std::to_string(H) + " needs a " +
-                              std::to_string(ptrs * sizeof(uint32_t) >> 20) +
-                              " MiB pointer matrix at the leaf level (limit 1024 MiB); lower the height "
-                              "or raise the block edge");
+    int logPtr = 0, logAxis = 0;
+    for (int a = 0; a < 3; ++a) {
+      logPtr += std::max(0, tree.logDims_[H][a] - lb);
+      logAxis = std::max(logAxis, tree.logDims_[H][a]);
+    }
+    if (logPtr + 2 > 30 || logAxis > 30)  // 4-byte pointers: 2^(logPtr+2) bytes
+      throw std::length_error("MatrixTree: height " + std::to_string(H) + " needs a 2^" + std::to_string(logPtr + 2) +
+                              "-byte pointer matrix at the leaf level (limit 1 GiB, and at most 2^30 nodes per "
+                              "axis); lower the height or raise the block edge");
   }
   tree.cellSize_.resize(H + 1);
   for (int l = 0; l <= H; ++l)
@@ -360,6 +362,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       pdata[s] = 1;
     }
   }
+  tree.empty_ = false;
   clock.lap("propagate");
   if (stats) {
     stats->references = numPairs;

@@ -187,8 +187,9 @@ inline int cellIndex(double x, int lo, int hi) {
 std::vector<std::array<int, 3>> levelShapes(TreeKind kind, Vec3 e, int height);
 
 /// The automatic height rule: the shallowest level whose largest node extent is at most
-/// leafScale x medianExtent, capped so the bottom level has at most 2^33 nodes.
-int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double leafScale);
+/// leafScale x medianExtent, capped so that the leaf level's pointer matrix (for blocks of
+/// edge blockEdge) has at most 2^24 cells and no axis more than 2^30 nodes.
+int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double leafScale, int blockEdge);
 
 // ---------------------------------------------------------------------------------------------
 template <class LeafFn>
