@@ -117,10 +117,11 @@ inline bool rayTriangleMT(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, double tmin, d
   const double inv = 1.0 / det;
   const Vec3 s = o - a;
   const double uu = dot(s, p) * inv;
-  if (uu < 0.0 || uu > 1.0) return false;
+  // Written as !(inside) so that NaN (e.g. from an infinite origin) is rejected too.
+  if (!(uu >= 0.0 && uu <= 1.0)) return false;
   const Vec3 q = cross(s, e1);
   const double vv = dot(d, q) * inv;
-  if (vv < 0.0 || uu + vv > 1.0) return false;
+  if (!(vv >= 0.0 && uu + vv <= 1.0)) return false;
   const double tt = dot(e2, q) * inv;
   if (!(tt >= tmin && tt <= tmax)) return false;
   t = tt;

@@ -36,7 +36,7 @@ typedef struct MtSparseDesc {
   mt_u32 numBlocks;   /*  4: allocated blocks */
   mt_u32 ptrOffset;   /*  4: first pointer of this matrix in a concatenated pointer array */
   mt_u32 dataOffset;  /*  4: first entry of this matrix in a concatenated data array */
-  mt_u32 pad;         /*  4: keeps the struct 64 bytes */
+  mt_u32 pad[3];      /* 12: keeps the struct 64 bytes */
 } MtSparseDesc;
 
 /* A leaf's primitive range [begin, end) in the tree's primitive index array.

@@ -1,0 +1,97 @@
+// The structs of layout.h are shared with the OpenCL kernels: their sizes and field offsets are a
+// contract, written beside every field in the header. These tests hold the header to it.
+#include <gtest/gtest.h>
+
+#include <cstddef>
+#include <type_traits>
+
+#include "mtree/block_sparse.h"
+#include "mtree/layout.h"
+
+namespace {
+
+TEST(Layout, FieldTypesAre32Bit) {
+  EXPECT_EQ(sizeof(mt_u32), 4u);
+  EXPECT_EQ(sizeof(mt_i32), 4u);
+  EXPECT_EQ(sizeof(mt_u8), 1u);
+  EXPECT_TRUE(std::is_unsigned<mt_u32>::value);
+  EXPECT_TRUE(std::is_signed<mt_i32>::value);
+  EXPECT_EQ(MT_NULL, 0xFFFFFFFFu);
+  EXPECT_EQ(MT_MAX_LOG_BLOCK, 5);
+  EXPECT_EQ(MT_MAX_LEVELS, 64);
+}
+
+TEST(Layout, StructsArePlainOldData) {
+  // Uploaded to a device byte for byte: no vtable, no padding games, trivially copyable.
+  EXPECT_TRUE(std::is_standard_layout<MtSparseDesc>::value);
+  EXPECT_TRUE(std::is_trivially_copyable<MtSparseDesc>::value);
+  EXPECT_TRUE(std::is_standard_layout<MtLeafRange>::value);
+  EXPECT_TRUE(std::is_trivially_copyable<MtLeafRange>::value);
+  EXPECT_TRUE(std::is_standard_layout<MtLevelDesc>::value);
+  EXPECT_TRUE(std::is_trivially_copyable<MtLevelDesc>::value);
+  EXPECT_EQ(alignof(MtSparseDesc), 4u);
+  EXPECT_EQ(alignof(MtLeafRange), 4u);
+  EXPECT_EQ(alignof(MtLevelDesc), 4u);
+}
+
+TEST(Layout, LeafRangeIs8Bytes) {
+  EXPECT_EQ(sizeof(MtLeafRange), 8u);
+  EXPECT_EQ(offsetof(MtLeafRange, begin), 0u);
+  EXPECT_EQ(offsetof(MtLeafRange, end), 4u);
+}
+
+// layout.h documents MtSparseDesc as 64 bytes ("pad: keeps the struct 64 bytes") and
+// MtLevelDesc as 80 bytes (64 + 12 + 4).
+TEST(Layout, SparseDescIs64Bytes) {
+  EXPECT_EQ(sizeof(MtSparseDesc), 64u)
+      << "layout.h: 9 x i32 + 5 x u32 = 56 bytes; the single `pad` field does not make 64";
+}
+
+TEST(Layout, SparseDescFieldOffsets) {
+  EXPECT_EQ(offsetof(MtSparseDesc, dims), 0u);
+  EXPECT_EQ(offsetof(MtSparseDesc, logBlock), 12u);
+  EXPECT_EQ(offsetof(MtSparseDesc, ptrDims), 24u);
+  EXPECT_EQ(offsetof(MtSparseDesc, blockVolume), 36u);
+  EXPECT_EQ(offsetof(MtSparseDesc, numBlocks), 40u);
+  EXPECT_EQ(offsetof(MtSparseDesc, ptrOffset), 44u);
+  EXPECT_EQ(offsetof(MtSparseDesc, dataOffset), 48u);
+  EXPECT_EQ(offsetof(MtSparseDesc, pad), 52u);
+}
+
+TEST(Layout, LevelDescIs80Bytes) {
+  EXPECT_EQ(sizeof(MtLevelDesc), 80u) << "layout.h documents 64 + 12 + 4 = 80 bytes";
+  // The level fields follow the matrix, whatever its size.
+  EXPECT_EQ(offsetof(MtLevelDesc, matrix), 0u);
+  EXPECT_EQ(offsetof(MtLevelDesc, logDims), sizeof(MtSparseDesc));
+  EXPECT_EQ(offsetof(MtLevelDesc, pad), sizeof(MtSparseDesc) + 12u);
+  EXPECT_EQ(offsetof(MtLevelDesc, logDims), 64u);
+  EXPECT_EQ(offsetof(MtLevelDesc, pad), 76u);
+}
+
+TEST(Layout, ArraysOfDescriptorsHaveNoGaps) {
+  // Kernels index level descriptors as a flat array: element i starts at i * sizeof.
+  MtLevelDesc levels[3];
+  EXPECT_EQ(reinterpret_cast<const char*>(&levels[2]) - reinterpret_cast<const char*>(&levels[0]),
+            static_cast<std::ptrdiff_t>(2 * sizeof(MtLevelDesc)));
+  MtLeafRange ranges[4];
+  EXPECT_EQ(reinterpret_cast<const char*>(&ranges[3]) - reinterpret_cast<const char*>(&ranges[0]), 24);
+}
+
+TEST(Layout, BlockSparseDescriptorFillsTheSharedStruct) {
+  // The host matrix hands the kernels exactly this struct: its fields must describe the matrix.
+  mtree::BlockSparseMatrix<uint8_t> m(37, 5, 64, 8, 0);
+  const MtSparseDesc& d = m.desc();
+  EXPECT_EQ(d.dims[0], 37);
+  EXPECT_EQ(d.dims[1], 5);
+  EXPECT_EQ(d.dims[2], 64);
+  EXPECT_EQ(d.logBlock[0], 3);
+  EXPECT_EQ(d.logBlock[1], 3);  // 5 entries: the block is shrunk to the next power of two, 8
+  EXPECT_EQ(d.logBlock[2], 3);
+  EXPECT_EQ(d.ptrDims[0], 5);
+  EXPECT_EQ(d.ptrDims[1], 1);
+  EXPECT_EQ(d.ptrDims[2], 8);
+  EXPECT_EQ(d.blockVolume, 512u);
+  EXPECT_EQ(d.numBlocks, 0u);
+}
+
+}  // namespace

@@ -1,0 +1,183 @@
+// exclusiveScan and radixSortPairs against std::partial_sum / std::stable_sort, on random data of
+// sizes on both sides of the serial/parallel switch-overs, with 1, 2, 3 and 7 threads.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <numeric>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "mtree/parallel.h"
+#include "test_util.h"
+
+namespace {
+
+const std::vector<size_t> kSizes = {
+    0, 1, 2, 3, 17, 1000, 16383, 16384, 32767, 32768, 70001, (1u << 16) + 3, 300007};
+const std::vector<int> kThreads = {1, 2, 3, 7};
+
+template <typename T>
+std::vector<uint32_t> referenceScan(const std::vector<T>& in, uint64_t& total) {
+  // Exclusive scan = inclusive partial_sum shifted by one; sums in 64 bits, stored mod 2^32.
+  // (std::partial_sum accumulates in the input's value type: widen the input first.)
+  std::vector<uint64_t> incl(in.begin(), in.end());
+  std::partial_sum(incl.begin(), incl.end(), incl.begin());
+  std::vector<uint32_t> out(in.size());
+  for (size_t i = 0; i < in.size(); ++i) out[i] = static_cast<uint32_t>(i == 0 ? 0 : incl[i - 1]);
+  total = in.empty() ? 0 : incl.back();
+  return out;
+}
+
+class ScanTest : public ::testing::TestWithParam<size_t> {};
+
+TEST_P(ScanTest, Uint32MatchesPartialSum) {
+  const size_t n = GetParam();
+  for (const int threads : kThreads) {
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    mtest::Rng rng(n * 31 + threads);
+    // Small values (counts, the builder's case) and huge ones (the 64-bit total must not wrap).
+    for (const uint32_t range : {7u, 0xFFFFFFFFu}) {
+      std::vector<uint32_t> in(n);
+      for (auto& v : in) v = range == 7u ? rng.below(8) : static_cast<uint32_t>(rng.next());
+      uint64_t wantTotal = 0;
+      const std::vector<uint32_t> want = referenceScan(in, wantTotal);
+      std::vector<uint32_t> out(n, 0xDEADBEEFu);
+      const uint64_t total = mtree::exclusiveScan(in.data(), out.data(), n, threads);
+      EXPECT_EQ(total, wantTotal) << "range " << range;
+      EXPECT_TRUE(out == want) << "range " << range;
+      // In place (out aliases in) gives the same.
+      std::vector<uint32_t> inplace = in;
+      const uint64_t total2 = mtree::exclusiveScan(inplace.data(), inplace.data(), n, threads);
+      EXPECT_EQ(total2, wantTotal);
+      EXPECT_TRUE(inplace == want) << "in place, range " << range;
+    }
+  }
+}
+
+TEST_P(ScanTest, Uint8MatchesPartialSum) {
+  const size_t n = GetParam();
+  for (const int threads : kThreads) {
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    mtest::Rng rng(n * 17 + threads);
+    std::vector<uint8_t> in(n);
+    for (auto& v : in) v = static_cast<uint8_t>(rng.uniform() < 0.5 ? rng.below(2) : rng.below(256));
+    uint64_t wantTotal = 0;
+    const std::vector<uint32_t> want = referenceScan(in, wantTotal);
+    std::vector<uint32_t> out(n, 0xDEADBEEFu);
+    EXPECT_EQ(mtree::exclusiveScan(in.data(), out.data(), n, threads), wantTotal);
+    EXPECT_TRUE(out == want);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Sizes, ScanTest, ::testing::ValuesIn(kSizes),
+                         [](const ::testing::TestParamInfo<size_t>& info) {
+                           return "n" + std::to_string(info.param);
+                         });
+
+TEST(Scan, TotalBeyond32Bits) {
+  // 2^17 entries of 2^31: the total is 2^48 while every output wraps modulo 2^32.
+  const size_t n = size_t{1} << 17;
+  std::vector<uint32_t> in(n, 1u << 31), out(n);
+  for (int threads : kThreads) {
+    EXPECT_EQ(mtree::exclusiveScan(in.data(), out.data(), n, threads), uint64_t{1} << 48);
+    for (size_t i = 0; i < n; i += 4099) ASSERT_EQ(out[i], i % 2 ? 1u << 31 : 0u) << i;
+  }
+}
+
+// ---- radix sort ----
+
+class RadixTest : public ::testing::TestWithParam<std::tuple<size_t, int>> {};
+
+TEST_P(RadixTest, MatchesStableSort) {
+  const size_t n = std::get<0>(GetParam());
+  const int keyBits = std::get<1>(GetParam());
+  for (const int threads : kThreads) {
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    mtest::Rng rng(n * 131 + keyBits * 7 + threads);
+    const uint64_t mask = keyBits >= 32 ? 0xFFFFFFFFull : ((uint64_t{1} << keyBits) - 1);
+    std::vector<uint32_t> keys(n), values(n);
+    for (size_t i = 0; i < n; ++i) {
+      keys[i] = static_cast<uint32_t>(rng.next() & mask);
+      values[i] = static_cast<uint32_t>(i);  // the original position: checks stability
+    }
+    std::vector<std::pair<uint32_t, uint32_t>> ref(n);
+    for (size_t i = 0; i < n; ++i) ref[i] = {keys[i], values[i]};
+    std::stable_sort(ref.begin(), ref.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+
+    std::vector<uint32_t> tk, tv;
+    mtree::radixSortPairs(keys, values, keyBits, threads, tk, tv);
+    ASSERT_EQ(keys.size(), n);
+    ASSERT_EQ(values.size(), n);
+    size_t wrong = 0;
+    for (size_t i = 0; i < n; ++i) wrong += keys[i] != ref[i].first || values[i] != ref[i].second;
+    EXPECT_EQ(wrong, 0u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Sizes, RadixTest,
+                         ::testing::Combine(::testing::Values(0, 1, 2, 100, 16383, 16384, (1u << 16) + 5,
+                                                              200003),
+                                            ::testing::Values(1, 2, 7, 8, 9, 13, 16, 17, 24, 31, 32)),
+                         [](const ::testing::TestParamInfo<std::tuple<size_t, int>>& info) {
+                           return "n" + std::to_string(std::get<0>(info.param)) + "_bits" +
+                                  std::to_string(std::get<1>(info.param));
+                         });
+
+TEST(Radix, StableWithFewDistinctKeysAndReusedScratch) {
+  // Three key values over 100k pairs: every run of equal keys must keep its input order.
+  const size_t n = 100000;
+  std::vector<uint32_t> tk(7), tv(3);  // scratch of the wrong size: resized by the sort
+  for (int threads : kThreads) {
+    std::vector<uint32_t> keys(n), values(n);
+    mtest::Rng rng(threads);
+    for (size_t i = 0; i < n; ++i) {
+      keys[i] = rng.below(3) * 1000;  // 0, 1000, 2000: keyBits 11
+      values[i] = static_cast<uint32_t>(i);
+    }
+    std::vector<uint32_t> k0 = keys;
+    mtree::radixSortPairs(keys, values, 11, threads, tk, tv);
+    ASSERT_TRUE(std::is_sorted(keys.begin(), keys.end()));
+    for (size_t i = 1; i < n; ++i)
+      if (keys[i] == keys[i - 1]) {
+        ASSERT_LT(values[i - 1], values[i]) << "unstable at " << i;
+      }
+    for (size_t i = 0; i < n; ++i) ASSERT_EQ(k0[values[i]], keys[i]) << "value not carried with its key";
+  }
+}
+
+TEST(Radix, ResultDoesNotDependOnThreads) {
+  const size_t n = 250000;
+  std::vector<uint32_t> k1(n), v1(n);
+  mtest::Rng rng(99);
+  for (size_t i = 0; i < n; ++i) {
+    k1[i] = rng.below(1u << 20);
+    v1[i] = rng.below(1000);  // values need not be distinct
+  }
+  std::vector<uint32_t> tk, tv;
+  std::vector<uint32_t> kr = k1, vr = v1;
+  mtree::radixSortPairs(kr, vr, 20, 1, tk, tv);
+  for (int threads : {2, 3, 4, 7, 16}) {
+    std::vector<uint32_t> k = k1, v = v1;
+    mtree::radixSortPairs(k, v, 20, threads, tk, tv);
+    EXPECT_TRUE(k == kr) << threads << " threads";
+    EXPECT_TRUE(v == vr) << threads << " threads";
+  }
+}
+
+TEST(Radix, ZeroKeyBitsLeavesInputAlone) {
+  std::vector<uint32_t> keys = {3, 1, 2}, values = {0, 1, 2}, tk, tv;
+  mtree::radixSortPairs(keys, values, 0, 2, tk, tv);
+  EXPECT_EQ(keys, (std::vector<uint32_t>{3, 1, 2}));
+  EXPECT_EQ(values, (std::vector<uint32_t>{0, 1, 2}));
+}
+
+TEST(Parallel, ResolveThreads) {
+  EXPECT_EQ(mtree::resolveThreads(3), 3);
+  EXPECT_EQ(mtree::resolveThreads(1), 1);
+  EXPECT_GE(mtree::resolveThreads(0), 1);
+  EXPECT_GE(mtree::resolveThreads(-2), 1);
+}
+
+}  // namespace
