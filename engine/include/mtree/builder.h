@@ -229,23 +229,31 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     // it meets every slab of the third axis within its range, inside the one cell of the others.
     const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
     const bool test = exact && thin < 2;
-    const auto tester = prim.tester(test ? half : Vec3());
     uint32_t c = 0, cand = 0;
     uint64_t mask = 0;
     size_t lastBlock = ~size_t{0};
-    for (int k = lo[2]; k <= hi[2]; ++k)
-      for (int j = lo[1]; j <= hi[1]; ++j)
-        for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
-          if (test && !tester.overlaps(cellCentre(ii, j, k))) continue;
-          if (cand < 64) mask |= uint64_t{1} << cand;
-          ++c;
-          const size_t blk = leaves.pointerIndex(ii, j, k);
-          if (blk != lastBlock) {
+    auto visit = [&](auto&& overlaps) {
+      for (int k = lo[2]; k <= hi[2]; ++k)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+          for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
+            if (!overlaps(ii, j, k)) continue;
+            if (cand < 64) mask |= uint64_t{1} << cand;
+            ++c;
+            const size_t blk = leaves.pointerIndex(ii, j, k);
+            if (blk != lastBlock) {
 #pragma omp atomic write
-            marks[blk] = 1;
-            lastBlock = blk;
+              marks[blk] = 1;
+              lastBlock = blk;
+            }
           }
-        }
+    };
+    if (test) {
+      // The separating-axis tester is built only for primitives that need it.
+      const auto tester = prim.tester(half);
+      visit([&](int x, int y, int z) { return tester.overlaps(cellCentre(x, y, z)); });
+    } else {
+      visit([](int, int, int) { return true; });
+    }
     counts[i] = c;
     if (exact) masks[i] = mask;
   }
@@ -279,16 +287,23 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
     const bool test = exact && thin < 2;
     const bool big = test && uint64_t(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) > 64;
-    const auto tester = prim.tester(big ? half : Vec3());
-    for (int k = lo[2]; k <= hi[2]; ++k)
-      for (int j = lo[1]; j <= hi[1]; ++j)
-        for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
-          const bool in = cand < 64 ? ((mask >> cand) & 1) != 0 : (!test || tester.overlaps(cellCentre(ii, j, k)));
-          if (!in) continue;
-          keys[out] = leaves.storageIndex(ii, j, k);
-          values[out] = static_cast<uint32_t>(i);
-          ++out;
-        }
+    auto emit = [&](auto&& beyondMask) {
+      for (int k = lo[2]; k <= hi[2]; ++k)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+          for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
+            const bool in = cand < 64 ? ((mask >> cand) & 1) != 0 : beyondMask(ii, j, k);
+            if (!in) continue;
+            keys[out] = leaves.storageIndex(ii, j, k);
+            values[out] = static_cast<uint32_t>(i);
+            ++out;
+          }
+    };
+    if (big) {
+      const auto tester = prim.tester(half);
+      emit([&](int x, int y, int z) { return tester.overlaps(cellCentre(x, y, z)); });
+    } else {
+      emit([&](int, int, int) { return !test; });
+    }
   }
   clock.lap("pairs");
 

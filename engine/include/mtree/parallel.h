@@ -18,7 +18,8 @@ uint64_t exclusiveScan(const uint32_t* in, uint32_t* out, size_t n, int threads)
 uint64_t exclusiveScan(const uint8_t* in, uint32_t* out, size_t n, int threads);
 
 /// Stable LSD radix sort of keys[] with values[] carried along, over the low `keyBits` bits.
-/// 8-bit digits, per-thread histograms, scatter by chunk: Satish, Harris & Garland 2009 on a CPU.
+/// Digits of at most 11 bits, per-thread histograms, scatter by chunk: Satish, Harris & Garland
+/// 2009 on a CPU.
 /// tmpKeys/tmpValues are scratch buffers (resized as needed, reusable across calls).
 void radixSortPairs(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, int keyBits,
                     int threads, std::vector<uint32_t>& tmpKeys, std::vector<uint32_t>& tmpValues);
