@@ -1,0 +1,109 @@
+#!/usr/bin/env python3
+"""Charts of the benchmark JSON files, written as PNG into docs/images/.
+
+    .venv/bin/python bench/plot.py [--build out/bench_build.json] [--height out/bench_height.json]
+
+build_phases.png: per scene, the median build time of the matrix octree and kd-tree split into
+the §5.1 phases (the paper's Figure 4), next to VTK's locators built in the same run.
+height_sweep.png: render and build time against the tree height per scene, auto height marked.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def plot_build(rows, path):
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    ours = [r for r in rows if r.get("overlap") == "exact"]
+    phases = list(ours[0]["phases_ms"])
+    fig, ax = plt.subplots(figsize=(11, 4.8))
+    width = 0.2
+    colors = plt.cm.Set2.colors + plt.cm.Dark2.colors  # no grey: greys are the VTK peers
+    for si, scene in enumerate(scenes):
+        for ti, tree in enumerate(["matrix-octree", "matrix-kdtree"]):
+            r = next((x for x in ours if x["scene"] == scene and x["tree"] == tree), None)
+            if r is None:
+                continue
+            x = si + (ti - 1.5) * width
+            bottom = 0
+            for pi, ph in enumerate(phases):
+                v = r["phases_ms"][ph]
+                ax.bar(x, v, width, bottom=bottom, color=colors[pi % len(colors)], edgecolor="white", linewidth=0.3,
+                       label=ph if (si == 0 and ti == 0) else None)
+                bottom += v
+            ax.text(x, bottom, "oct" if ti == 0 else "kd", ha="center", va="bottom", fontsize=7)
+        for pi, peer in enumerate(["vtkStaticCellLocator", "vtkCellTreeLocator"]):
+            r = next((x for x in rows if x["scene"] == scene and x["tree"] == peer), None)
+            if r is None:
+                continue
+            x = si + (pi + 0.5) * width
+            ax.bar(x, r["build_ms"], width, color="0.75" if pi == 0 else "0.55", edgecolor="white",
+                   label=peer if si == 0 else None)
+    ax.set_xticks(range(len(scenes)))
+    ax.set_xticklabels([f"{s}\n{next(r['triangles'] for r in rows if r['scene'] == s):,} tri" for s in scenes],
+                       fontsize=8)
+    ax.set_ylabel("build time (ms), median")
+    ax.set_title("Matrix-tree build (§5.1 phases) vs VTK locators, same run, 2 threads")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_height(data, path):
+    sweep = data["sweep"]
+    scenes = list(dict.fromkeys(r["scene"] for r in sweep))
+    fig, axes = plt.subplots(2, len(scenes), figsize=(2.3 * len(scenes), 5), squeeze=False)
+    for col, scene in enumerate(scenes):
+        for row, tree in enumerate(["octree", "kdtree"]):
+            ax = axes[row][col]
+            pts = sorted((r for r in sweep if r["scene"] == scene and r["tree"] == tree and r["height_setting"] != "auto"),
+                         key=lambda r: r["height"])
+            auto = next(r for r in sweep if r["scene"] == scene and r["tree"] == tree and r["height_setting"] == "auto")
+            h = [r["height"] for r in pts]
+            ax.plot(h, [r["render_ms"] for r in pts], "o-", ms=3, label="render")
+            ax.plot(h, [r["build_ms"] for r in pts], "s-", ms=3, label="build")
+            ax.axvline(auto["height"], color="k", ls=":", lw=1)
+            ax.set_yscale("log")
+            ax.set_title(f"{scene} {tree}", fontsize=8)
+            ax.tick_params(labelsize=7)
+            if col == 0:
+                ax.set_ylabel("ms")
+            if row == 1:
+                ax.set_xlabel("height (dotted: auto)", fontsize=7)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--build", default=os.path.join(ROOT, "out", "bench_build.json"))
+    p.add_argument("--height", default=os.path.join(ROOT, "out", "bench_height.json"))
+    p.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
+    a = p.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    if os.path.exists(a.build):
+        with open(a.build) as f:
+            plot_build(json.load(f), os.path.join(a.out, "build_phases.png"))
+        print("wrote", os.path.join(a.out, "build_phases.png"))
+    if os.path.exists(a.height):
+        with open(a.height) as f:
+            plot_height(json.load(f), os.path.join(a.out, "height_sweep.png"))
+        print("wrote", os.path.join(a.out, "height_sweep.png"))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
