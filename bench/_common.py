@@ -69,3 +69,13 @@ def write_json(path: str, rows) -> None:
     os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
     with open(path, "w") as f:
         json.dump(rows, f, indent=1)
+
+
+def write_outputs(json_path: str, payload, md_path: str | None, md_rows: list, md_cols: list) -> None:
+    """Write the JSON results and, if asked, the markdown table; say where."""
+    write_json(json_path, payload)
+    print(f"\nwrote {json_path}")
+    if md_path:
+        with open(md_path, "w") as f:
+            f.write(markdown(md_rows, md_cols) + "\n")
+        print(f"wrote {md_path}")

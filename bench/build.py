@@ -19,7 +19,7 @@ import statistics
 
 import numpy as np
 
-from _common import default_scene_paths, load, machine, markdown, median_time_ms, table, write_json
+from _common import default_scene_paths, load, machine, median_time_ms, table, write_outputs
 import matrixtree
 
 
@@ -124,12 +124,7 @@ def main() -> int:
         print(f"  {scene:14s} " + "  ".join(f"{r['tree']} {r['build_ms'] / ours['build_ms']:.1f}x" for r in peers))
     for r in rows:
         r["machine"] = machine()
-    write_json(a.json, rows)
-    print(f"\nwrote {a.json}")
-    if a.markdown:
-        with open(a.markdown, "w") as f:
-            f.write(markdown(flat, cols) + "\n")
-        print(f"wrote {a.markdown}")
+    write_outputs(a.json, rows, a.markdown, flat, cols)
     return 0
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from _common import default_scene_paths, load, machine, markdown, table, write_json
+from _common import default_scene_paths, load, machine, table, write_outputs
 import matrixtree
 from matrixtree_vtk import vtkMatrixTreeRayCaster
 
@@ -88,12 +88,7 @@ def main() -> int:
     for r in rows + summary:
         r["machine"] = machine()
         r["image"] = a.size
-    write_json(a.json, {"sweep": rows, "summary": summary})
-    print(f"\nwrote {a.json}")
-    if a.markdown:
-        with open(a.markdown, "w") as f:
-            f.write(markdown(summary, scols) + "\n")
-        print(f"wrote {a.markdown}")
+    write_outputs(a.json, {"sweep": rows, "summary": summary}, a.markdown, summary, scols)
     return 0
 
 

@@ -4,21 +4,29 @@ namespace mtree {
 
 const char* treeKindName(TreeKind k) { return k == TreeKind::Octree ? "octree" : "kdtree"; }
 
+namespace {
+// One level down: which axes split (the tree kind's rule, see matrix_tree.h). Updates the node
+// extent `cell` and the per-axis log2 node counts `s`. The one place the rule is written, so the
+// level shapes and the automatic height can never disagree.
+void splitLevel(TreeKind kind, Vec3& cell, std::array<int, 3>& s) {
+  const double m = std::max(cell.x, std::max(cell.y, cell.z));
+  if (kind == TreeKind::Octree) {
+    for (int a = 0; a < 3; ++a)
+      if (cell[a] * 2.0 > m) { ++s[a]; cell[a] *= 0.5; }
+  } else {
+    const int a = (cell.x >= cell.y && cell.x >= cell.z) ? 0 : (cell.y >= cell.z ? 1 : 2);
+    ++s[a];
+    cell[a] *= 0.5;
+  }
+}
+}  // namespace
+
 std::vector<std::array<int, 3>> levelShapes(TreeKind kind, Vec3 e, int height) {
   std::vector<std::array<int, 3>> shapes(static_cast<size_t>(height) + 1, std::array<int, 3>{0, 0, 0});
   Vec3 cell = e;
   for (int l = 1; l <= height; ++l) {
-    std::array<int, 3> s = shapes[l - 1];
-    const double m = std::max(cell.x, std::max(cell.y, cell.z));
-    if (kind == TreeKind::Octree) {
-      for (int a = 0; a < 3; ++a)
-        if (cell[a] * 2.0 > m) { ++s[a]; cell[a] *= 0.5; }
-    } else {
-      const int a = (cell.x >= cell.y && cell.x >= cell.z) ? 0 : (cell.y >= cell.z ? 1 : 2);
-      ++s[a];
-      cell[a] *= 0.5;
-    }
-    shapes[l] = s;
+    shapes[l] = shapes[l - 1];
+    splitLevel(kind, cell, shapes[l]);
   }
   return shapes;
 }
@@ -38,14 +46,7 @@ int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double lea
     if (!(target > 0) || m <= target) break;
     std::array<int, 3> ns = s;
     Vec3 nc = cell;
-    if (kind == TreeKind::Octree) {
-      for (int a = 0; a < 3; ++a)
-        if (cell[a] * 2.0 > m) { ++ns[a]; nc[a] *= 0.5; }
-    } else {
-      const int a = (cell.x >= cell.y && cell.x >= cell.z) ? 0 : (cell.y >= cell.z ? 1 : 2);
-      ++ns[a];
-      nc[a] *= 0.5;
-    }
+    splitLevel(kind, nc, ns);
     int logPtr = 0;
     for (int a = 0; a < 3; ++a) logPtr += std::max(0, ns[a] - lb);
     if (logPtr > kMaxLogPointers || std::max(ns[0], std::max(ns[1], ns[2])) > kMaxLogAxis) break;
