@@ -1,0 +1,149 @@
+// CellSet: the cells of an unstructured grid (or the polygons of a surface) as a primitive set of
+// the matrix-tree builder (see primitives.h for the contract).
+//
+// Overlap with a leaf box is a separating-axis test over the cell's vertices with the axes of its
+// type: the box normals, the normals of its (triangulated) faces and the cross products of its
+// edges with the box axes. Projections of a convex hull are projections of its vertices, so a
+// separating axis found proves separation; testing only some axes can only answer "overlap".
+// The test is therefore exact for convex linear cells and conservative for warped ones (a hex
+// with non-planar faces lies inside its vertices' convex hull). Types without a table (quadratic
+// and higher-order cells, polyhedra) use their nodes' bounding box padded by 5% of its largest
+// extent, because curved edges can bulge past the nodes.
+//
+// Cell type codes are VTK's (VTK_TETRA = 10, ...), so VTK data converts without a table; the
+// engine itself does not depend on VTK.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "mtree/geometry.h"
+
+namespace mtree {
+
+enum CellType : uint8_t {
+  kEmptyCell = 0,
+  kVertex = 1,
+  kPolyVertex = 2,
+  kLine = 3,
+  kPolyLine = 4,
+  kTriangle = 5,
+  kTriangleStrip = 6,
+  kPolygon = 7,
+  kPixel = 8,
+  kQuad = 9,
+  kTetra = 10,
+  kVoxel = 11,
+  kHexahedron = 12,
+  kWedge = 13,
+  kPyramid = 14,
+};
+
+/// Faces and edges of the linear cell types, in VTK's point ordering.
+struct CellTopology {
+  int numPoints = 0;
+  int numFaces = 0;
+  int faceSize[6] = {0, 0, 0, 0, 0, 0};
+  int face[6][4] = {};
+  int numEdges = 0;
+  int edge[12][2] = {};
+};
+const CellTopology* cellTopology(uint8_t type);  // nullptr: no table (bounding box is used)
+
+class CellSet {
+ public:
+  static constexpr int kMaxLocalPoints = 8;
+
+  CellSet() = default;
+  /// points: 3 doubles per point; offsets: numCells + 1 entries into connectivity; types: one
+  /// VTK cell type per cell. Throws std::invalid_argument on inconsistent arrays, an index out of
+  /// range, or a non-finite coordinate.
+  CellSet(std::vector<double> points, std::vector<int64_t> offsets, std::vector<int64_t> connectivity,
+          std::vector<uint8_t> types)
+      : pts_(std::move(points)), off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
+    if (pts_.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
+    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 ||
+        off_.back() != static_cast<int64_t>(conn_.size()))
+      throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
+    for (size_t i = 0; i < pts_.size(); ++i)
+      if (!std::isfinite(pts_[i]))
+        throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
+    const int64_t np = static_cast<int64_t>(pts_.size() / 3);
+    for (size_t c = 0; c + 1 < off_.size(); ++c) {
+      if (off_[c + 1] < off_[c]) throw std::invalid_argument("CellSet: offsets must not decrease");
+      for (int64_t k = off_[c]; k < off_[c + 1]; ++k)
+        if (conn_[k] < 0 || conn_[k] >= np)
+          throw std::invalid_argument("CellSet: cell " + std::to_string(c) + " refers to point " +
+                                      std::to_string(conn_[k]) + " of " + std::to_string(np));
+    }
+  }
+
+  size_t size() const { return types_.size(); }
+  uint8_t type(size_t c) const { return types_[c]; }
+  int64_t numCellPoints(size_t c) const { return off_[c + 1] - off_[c]; }
+  Vec3 cellPoint(size_t c, int64_t k) const { return Vec3(&pts_[3 * size_t(conn_[off_[c] + k])]); }
+
+  Box bounds(size_t c) const {
+    Box b;
+    for (int64_t k = 0; k < numCellPoints(c); ++k) b.extend(cellPoint(c, k));
+    if (b.empty()) return b;
+    if (!cellTopology(types_[c]) && types_[c] != kVoxel && types_[c] != kPixel) {
+      const Vec3 e = b.extent();
+      const double pad = 0.05 * std::max(e.x, std::max(e.y, e.z));
+      b.lo = b.lo - Vec3(pad, pad, pad);
+      b.hi = b.hi + Vec3(pad, pad, pad);
+    }
+    return b;
+  }
+
+  /// One cell with its points fetched once (for the builder).
+  struct Local {
+    Vec3 p[kMaxLocalPoints];
+    int n = 0;
+    const CellTopology* topo = nullptr;
+    Box box;
+    Box bounds() const { return box; }
+    bool overlaps(const Box& b) const {
+      if (!topo) return box.overlaps(b);
+      Vec3 normals[12], edges[12];
+      int nf = 0;
+      for (int f = 0; f < topo->numFaces; ++f) {
+        const int* v = topo->face[f];
+        normals[nf++] = cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
+        if (topo->faceSize[f] == 4) normals[nf++] = cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[0]]);
+      }
+      for (int e = 0; e < topo->numEdges; ++e) edges[e] = p[topo->edge[e][1]] - p[topo->edge[e][0]];
+      return convexOverlapsBox(p, n, normals, nf, edges, topo->numEdges, b);
+    }
+    struct Tester {
+      const Local* cell;
+      Vec3 half;
+      bool overlaps(Vec3 c) const { return cell->overlaps(Box{c - half, c + half}); }
+    };
+    Tester tester(Vec3 half) const { return Tester{this, half}; }
+  };
+  Local local(size_t c) const {
+    Local l;
+    l.box = bounds(c);
+    const int64_t n = numCellPoints(c);
+    const CellTopology* t = cellTopology(types_[c]);
+    if (t && n == t->numPoints) {  // a malformed cell (wrong point count) falls back to its box
+      l.topo = t;
+      l.n = static_cast<int>(n);
+      for (int k = 0; k < l.n; ++k) l.p[k] = cellPoint(c, k);
+    }
+    return l;
+  }
+  bool overlaps(size_t c, const Box& b) const { return local(c).overlaps(b); }
+
+  const std::vector<double>& points() const { return pts_; }
+
+ private:
+  std::vector<double> pts_;
+  std::vector<int64_t> off_, conn_;
+  std::vector<uint8_t> types_;
+};
+
+}  // namespace mtree

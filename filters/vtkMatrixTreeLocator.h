@@ -1,0 +1,169 @@
+/**
+ * @class   vtkMatrixTreeLocator
+ * @brief   a cell locator on an implicit, block-sparse matrix tree (octree or regular kd-tree)
+ *
+ * vtkMatrixTreeLocator indexes the cells of any vtkDataSet (unstructured grids with tetrahedra,
+ * hexahedra, wedges, pyramids, voxels or mixed cells; polydata; quadratic cells) in a matrix
+ * tree (Andrysco & Tricoche 2011): every level is a block-sparse matrix, built bottom-up in
+ * parallel, so finding the leaf that contains a point is a hash plus a binary search over depth.
+ * A cell is put in every leaf it overlaps: exactly (separating-axis test) for linear cells,
+ * through its bounding box (padded 5%) for higher-order ones, so the leaf containing a point
+ * lists every cell that can contain it.
+ *
+ * Answers are VTK's: candidate cells are evaluated with the cell's own EvaluatePosition /
+ * IntersectWithLine, with the usual tolerance semantics, so results match vtkCellLocator and
+ * vtkStaticCellLocator on the same data.
+ *
+ * Settings: TreeType (OCTREE default, KDTREE), Height (0 = chosen from the cells' sizes),
+ * BlockSize (8), NumberOfThreads for the build (0 = all). Superclass settings used:
+ * UseExistingSearchStructure (keep the tree when the data set changes), LazyEvaluation
+ * (build on the first query); NumberOfCellsPerNode, MaxLevel, Automatic, Level, Tolerance and
+ * CacheCellBounds are ignored: the height rule replaces them, and cell bounds are always kept.
+ *
+ * Thread safety: after the locator is built, FindCell(x, tol2, cell, pcoords, weights), the
+ * IntersectWithLine overloads that take a vtkGenericCell, FindClosestPoint with a vtkGenericCell,
+ * FindCellsWithinBounds and FindCellsAlongLine may be called concurrently (they only read the
+ * tree). Overloads without a vtkGenericCell use an internal cell and are not thread-safe, as in
+ * VTK's own locators. Building is not thread-safe.
+ *
+ * @sa
+ * vtkStaticCellLocator vtkCellLocator vtkCellTreeLocator vtkModifiedBSPTree vtkMatrixTree
+ */
+#ifndef vtkMatrixTreeLocator_h
+#define vtkMatrixTreeLocator_h
+
+#include "MatrixTreeFiltersModule.h" // For export macro
+#include "vtkAbstractCellLocator.h"
+#include "vtkVersionMacros.h" // For VTK_VERSION_CHECK
+
+class vtkIdList;
+class vtkGenericCell;
+class vtkPolyData;
+struct vtkMatrixTreeLocatorInternals;
+
+class MATRIXTREEFILTERS_EXPORT vtkMatrixTreeLocator : public vtkAbstractCellLocator
+{
+public:
+  static vtkMatrixTreeLocator* New();
+  vtkTypeMacro(vtkMatrixTreeLocator, vtkAbstractCellLocator);
+  void PrintSelf(ostream& os, vtkIndent indent) override;
+
+  using vtkAbstractCellLocator::FindCell;
+  using vtkAbstractCellLocator::FindClosestPoint;
+  using vtkAbstractCellLocator::FindClosestPointWithinRadius;
+  using vtkAbstractCellLocator::IntersectWithLine;
+
+  enum TreeTypes
+  {
+    OCTREE = 0,
+    KDTREE = 1
+  };
+
+  ///@{
+  /** Tree kind: OCTREE (default) or KDTREE (regular kd-tree). */
+  vtkSetClampMacro(TreeType, int, OCTREE, KDTREE);
+  vtkGetMacro(TreeType, int);
+  void SetTreeTypeToOctree() { this->SetTreeType(OCTREE); }
+  void SetTreeTypeToKdTree() { this->SetTreeType(KDTREE); }
+  ///@}
+
+  ///@{
+  /** Levels below the root, 0..63; 0 (default) = chosen from the cell sizes. */
+  vtkSetClampMacro(Height, int, 0, 63);
+  vtkGetMacro(Height, int);
+  ///@}
+
+  ///@{
+  /** Block edge of the block-sparse levels (power of two 1..32, default 8). */
+  vtkSetMacro(BlockSize, int);
+  vtkGetMacro(BlockSize, int);
+  ///@}
+
+  ///@{
+  /** OpenMP threads for the build (0 = all, default). */
+  vtkSetClampMacro(NumberOfThreads, int, 0, 4096);
+  vtkGetMacro(NumberOfThreads, int);
+  ///@}
+
+  // ---- vtkLocator ----
+  /** Builds the tree if the data set or a setting changed since the last build. */
+  void BuildLocator() override;
+  /** Builds the tree now. */
+  void ForceBuildLocator();
+  void FreeSearchStructure() override;
+  /**
+   * Boxes of the existing nodes of `level` (0 = root; a level past the height, or a negative
+   * one, gives the leaves) as quads, with cell data "Level" and "NumberOfCells" (per leaf; 0 for
+   * inner nodes).
+   */
+  void GenerateRepresentation(int level, vtkPolyData* pd) override;
+
+  // ---- vtkAbstractCellLocator ----
+  vtkIdType FindCell(double x[3]) override { return this->Superclass::FindCell(x); }
+  vtkIdType FindCell(
+    double x[3], double tol2, vtkGenericCell* cell, double pcoords[3], double* weights) override;
+#if VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 2, 0)
+  vtkIdType FindCell(double x[3], double tol2, vtkGenericCell* cell, int& subId, double pcoords[3],
+    double* weights) override;
+#endif
+  int IntersectWithLine(const double p1[3], const double p2[3], double tol, double& t, double x[3],
+    double pcoords[3], int& subId, vtkIdType& cellId, vtkGenericCell* cell) override;
+  int IntersectWithLine(const double p1[3], const double p2[3], double tol, double& t, double x[3],
+    double pcoords[3], int& subId) override
+  {
+    return this->Superclass::IntersectWithLine(p1, p2, tol, t, x, pcoords, subId);
+  }
+  int IntersectWithLine(const double p1[3], const double p2[3], double tol, double& t, double x[3],
+    double pcoords[3], int& subId, vtkIdType& cellId) override
+  {
+    return this->Superclass::IntersectWithLine(p1, p2, tol, t, x, pcoords, subId, cellId);
+  }
+  /**
+   * All intersections of the segment with cells, sorted by t: `points` gets the hit points and
+   * `cellIds` the cells (either may be null). Returns the number of hits (VTK's convention for
+   * this overload, implemented only by vtkOBBTree, returns -1/0/+1 for closed surfaces; here a
+   * count is more useful and documented).
+   */
+  int IntersectWithLine(
+    const double p1[3], const double p2[3], vtkPoints* points, vtkIdList* cellIds) override;
+  vtkIdType FindClosestPointWithinRadius(double x[3], double radius, double closestPoint[3],
+    vtkGenericCell* cell, vtkIdType& cellId, int& subId, double& dist2, int& inside) override;
+  void FindClosestPoint(const double x[3], double closestPoint[3], vtkGenericCell* cell,
+    vtkIdType& cellId, int& subId, double& dist2) override;
+  void FindCellsWithinBounds(double* bbox, vtkIdList* cells) override;
+  void FindCellsAlongLine(
+    const double p1[3], const double p2[3], double tolerance, vtkIdList* cells) override;
+  bool InsideCellBounds(double x[3], vtkIdType cellId) override;
+
+  ///@{
+  /** Build statistics of the last build. */
+  int GetTreeHeight();
+  vtkIdType GetNumberOfLeaves();
+  vtkIdType GetNumberOfReferences();
+  /** Bytes of the tree plus the cached cell bounds. */
+  vtkIdType GetMemorySize();
+  double GetLastBuildTime();
+  ///@}
+
+  /** Copies the settings (not the tree) of another vtkMatrixTreeLocator. */
+  void CopySettings(vtkMatrixTreeLocator* other);
+
+protected:
+  vtkMatrixTreeLocator();
+  ~vtkMatrixTreeLocator() override;
+
+  bool NeedsBuild();
+  bool EnsureBuilt();
+
+  int TreeType = OCTREE;
+  int Height = 0;
+  int BlockSize = 8;
+  int NumberOfThreads = 0;
+  vtkMatrixTreeLocatorInternals* Internals;
+
+private:
+  vtkMatrixTreeLocator(const vtkMatrixTreeLocator&) = delete;
+  void operator=(const vtkMatrixTreeLocator&) = delete;
+};
+
+#endif
