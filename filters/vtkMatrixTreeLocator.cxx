@@ -28,6 +28,7 @@ struct vtkMatrixTreeLocatorInternals
   mtree::MatrixTree Tree;
   mtree::BuildStats Stats;
   std::vector<double> CellBounds; // 6 per cell: xmin xmax ymin ymax zmin zmax
+  double MaxCellExtent[3] = { 0, 0, 0 }; // largest cell bounding-box extent per axis
   bool Valid = false;
 };
 
@@ -185,6 +186,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     return;
   }
   in.CellBounds.resize(static_cast<size_t>(nc) * 6);
+  std::fill(in.MaxCellExtent, in.MaxCellExtent + 3, 0.0);
   for (vtkIdType c = 0; c < nc; ++c)
   {
     const mtree::Box bb = in.Cells.bounds(c);
@@ -192,6 +194,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     {
       in.CellBounds[6 * c + 2 * a] = bb.lo[a];
       in.CellBounds[6 * c + 2 * a + 1] = bb.hi[a];
+      in.MaxCellExtent[a] = std::max(in.MaxCellExtent[a], bb.hi[a] - bb.lo[a]);
     }
   }
   in.Valid = true;
@@ -447,11 +450,8 @@ vtkIdType vtkMatrixTreeLocator::FindClosestPointWithinRadius(double x[3], double
         {
           continue; // degenerate cell
         }
-        if (ret == 1)
-        {
-          d2 = 0.0;
-          std::copy(x, x + 3, cp);
-        }
+        // EvaluatePosition's dist2 and closest point are right for every cell dimension (for a
+        // triangle "inside" means the projection falls inside, and dist2 is the plane distance).
         if (d2 < best || (d2 == best && bestId >= 0 && id < bestId) || (bestId < 0 && d2 <= best))
         {
           best = d2;
@@ -503,9 +503,12 @@ void vtkMatrixTreeLocator::FindCellsWithinBounds(double* bbox, vtkIdList* cells)
   }
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
   const mtree::MatrixTree& tree = in.Tree;
+  // VTK's semantics: every cell whose bounds meet the box. A cell is only in the leaves it
+  // really overlaps, so gather from leaves of the box widened by the largest cell extent, then
+  // filter by the cached cell bounds.
   mtree::Box q;
-  q.lo = mtree::Vec3(bbox[0], bbox[2], bbox[4]);
-  q.hi = mtree::Vec3(bbox[1], bbox[3], bbox[5]);
+  q.lo = mtree::Vec3(bbox[0] - in.MaxCellExtent[0], bbox[2] - in.MaxCellExtent[1], bbox[4] - in.MaxCellExtent[2]);
+  q.hi = mtree::Vec3(bbox[1] + in.MaxCellExtent[0], bbox[3] + in.MaxCellExtent[1], bbox[5] + in.MaxCellExtent[2]);
   std::vector<vtkIdType> found;
   struct Node
   {

@@ -18,7 +18,8 @@ from matrixtree_vtk import vtkMatrixTreeVersion
 
 from matrixtree import scenes
 from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb
+from matrixtree.grids import read_grid
 
 __version__ = vtkMatrixTreeVersion.GetVersion()
 
-__all__ = ["MatrixTree", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "__version__"]
+__all__ = ["MatrixTree", "read_grid", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "__version__"]

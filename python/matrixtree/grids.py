@@ -1,0 +1,117 @@
+"""Reading volume grids (unstructured CFD meshes) into ``vtkUnstructuredGrid``."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+from vtkmodules.vtkCommonCore import vtkPoints
+from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
+
+# meshio cell type -> (VTK cell type, points per cell)
+_MESHIO_TO_VTK = {"tetra": (10, 4), "hexahedron": (12, 8), "wedge": (13, 6), "pyramid": (14, 5),
+                  "triangle": (5, 3), "quad": (9, 4), "tetra10": (24, 10), "hexahedron20": (25, 20)}
+_VOLUME = {10, 12, 13, 14, 24, 25}
+
+
+def read_grid(path: str | os.PathLike, volume_only: bool = True) -> vtkUnstructuredGrid:
+    """Read an unstructured grid: ``.vtu`` and legacy ``.vtk`` through VTK, Exodus II (``.ex2``,
+    ``.exo``) through ``vtkExodusIIReader`` (first block set, merged), anything else (SU2,
+    Gmsh, ...) through meshio.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    volume_only : bool, default: True
+        Keep only 3-D cells (SU2 files also carry their boundary faces as markers).
+
+    Returns
+    -------
+    vtkUnstructuredGrid
+
+    Examples
+    --------
+    >>> import os, matrixtree
+    >>> g = matrixtree.read_grid(os.path.join(matrixtree.scenes.data_dir(), "cfd", "brick_hex.su2"))
+    >>> g.GetNumberOfCells()
+    14079
+    """
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"no such grid file: {path}")
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".vtu":
+        from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+
+        r = vtkXMLUnstructuredGridReader()
+        r.SetFileName(path)
+        r.Update()
+        return r.GetOutput()
+    if ext in (".ex2", ".exo", ".e"):
+        from vtkmodules.vtkFiltersCore import vtkAppendFilter  # noqa: F401
+        from vtkmodules.vtkIOExodus import vtkExodusIIReader
+        from vtkmodules.vtkFiltersCore import vtkAppendFilter as Append
+
+        r = vtkExodusIIReader()
+        r.SetFileName(path)
+        r.UpdateInformation()
+        for i in range(r.GetNumberOfObjects(r.ELEM_BLOCK)):
+            r.SetObjectStatus(r.ELEM_BLOCK, i, 1)
+        for i in range(r.GetNumberOfPointResultArrays()):
+            r.SetPointResultArrayStatus(r.GetPointResultArrayName(i), 1)
+        r.Update()
+        app = Append()
+        app.MergePointsOn()
+        mb = r.GetOutput()
+        it = mb.NewIterator()
+        it.InitTraversal()
+        while not it.IsDoneWithTraversal():
+            app.AddInputData(it.GetCurrentDataObject())
+            it.GoToNextItem()
+        app.Update()
+        out = vtkUnstructuredGrid()
+        out.ShallowCopy(app.GetOutput())
+        return out
+    import contextlib
+    import io
+    import logging
+
+    import meshio
+
+    # meshio warns line by line about SU2 marker sections it skips: thousands of lines.
+    sink = io.StringIO()
+    level = logging.getLogger().level
+    logging.getLogger().setLevel(logging.ERROR)
+    try:
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+            m = meshio.read(path)
+    finally:
+        logging.getLogger().setLevel(level)
+    pts = np.ascontiguousarray(np.asarray(m.points, dtype=np.float64))
+    if pts.shape[1] == 2:
+        pts = np.hstack([pts, np.zeros((len(pts), 1))])
+    types, conn, offsets = [], [], [0]
+    for block in m.cells:
+        if block.type not in _MESHIO_TO_VTK:
+            continue
+        vtype, npc = _MESHIO_TO_VTK[block.type]
+        if volume_only and vtype not in _VOLUME:
+            continue
+        data = np.asarray(block.data, dtype=np.int64).reshape(-1, npc)
+        types.append(np.full(len(data), vtype, dtype=np.uint8))
+        conn.append(data.ravel())
+        offsets.append(np.full(len(data), npc, dtype=np.int64))
+    if not types:
+        raise ValueError(f"{path} holds no supported cells")
+    types = np.concatenate(types)
+    conn = np.concatenate(conn)
+    off = np.concatenate([np.zeros(1, np.int64), np.cumsum(np.concatenate(offsets[1:]))])
+    cells = vtkCellArray()
+    cells.SetData(numpy_to_vtkIdTypeArray(off, deep=True), numpy_to_vtkIdTypeArray(conn, deep=True))
+    g = vtkUnstructuredGrid()
+    p = vtkPoints()
+    p.SetData(numpy_to_vtk(pts, deep=True))
+    g.SetPoints(p)
+    g.SetCells(numpy_to_vtk(types, deep=True, array_type=3), cells)  # 3 = VTK_UNSIGNED_CHAR
+    return g

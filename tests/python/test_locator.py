@@ -1,0 +1,192 @@
+"""vtkMatrixTreeLocator against VTK's own locators on the real CFD grids and meshes."""
+
+import os
+
+import numpy as np
+import pytest
+from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+from vtkmodules.vtkCommonCore import vtkIdList, vtkPoints, reference
+from vtkmodules.vtkCommonDataModel import vtkCellLocator, vtkGenericCell, vtkPolyData
+
+import matrixtree
+from matrixtree import scenes
+from matrixtree_vtk import vtkMatrixTreeLocator
+
+CFD = os.path.join(scenes.data_dir(), "cfd")
+GRIDS = ["pipe_flow_tets.vtu", "brick_tets.su2", "brick_pyra.su2", "brick_prism.su2", "brick_hex.su2",
+         "disk_out_ref.ex2"]
+
+
+def build(cls, ds, **settings):
+    loc = cls()
+    loc.SetDataSet(ds)
+    for k, v in settings.items():
+        getattr(loc, "Set" + k)(v)
+    loc.BuildLocator()
+    return loc
+
+
+def random_points(ds, n, seed, grow=0.05):
+    b = np.array(ds.GetBounds()).reshape(3, 2)
+    ext = b[:, 1] - b[:, 0]
+    rng = np.random.default_rng(seed)
+    return b[:, 0] - grow * ext + rng.random((n, 3)) * ext * (1 + 2 * grow)
+
+
+def contains(ds, cell_id, p):
+    cell = ds.GetCell(int(cell_id))
+    cp, pc, w = [0.0] * 3, [0.0] * 3, [0.0] * cell.GetNumberOfPoints()
+    return cell.EvaluatePosition(list(p), cp, reference(0), pc, reference(0.0), w) == 1
+
+
+@pytest.mark.parametrize("grid", GRIDS)
+@pytest.mark.parametrize("tree", [0, 1])
+def test_find_cell_agrees_with_vtk_cell_locator(grid, tree):
+    ds = matrixtree.read_grid(os.path.join(CFD, grid))
+    ours = build(vtkMatrixTreeLocator, ds, TreeType=tree)
+    ref = build(vtkCellLocator, ds)
+    gc = vtkGenericCell()
+    pc, w = [0.0] * 3, [0.0] * 8
+    disagreements = 0
+    found = 0
+    for p in random_points(ds, 4000, seed=11):
+        a = ours.FindCell(list(p), 0.0, gc, pc, w)
+        b = ref.FindCell(list(p), 0.0, gc, pc, w)
+        found += b >= 0
+        # -1 only when VTK finds nothing; otherwise a cell that really contains the point.
+        if (a < 0) != (b < 0) or (a >= 0 and a != b and not contains(ds, a, p)):
+            disagreements += 1
+    assert found > 500
+    assert disagreements == 0
+
+
+def test_probe_filter_with_prototype_matches_vtk():
+    """vtkProbeFilter calls NewInstance() on the prototype: the defaults must work."""
+    from vtkmodules.vtkFiltersCore import vtkProbeFilter
+
+    ds = matrixtree.read_grid(os.path.join(CFD, "pipe_flow_tets.vtu"))
+    pts = vtkPoints()
+    pts.SetData(numpy_to_vtk(random_points(ds, 100000, seed=5, grow=0.0), deep=True))
+    probe_pd = vtkPolyData()
+    probe_pd.SetPoints(pts)
+    out = {}
+    # vtkCellLocator is the reference: it returns the lowest-id cell that contains the point, as
+    # we do. (vtkStaticCellLocator differs from both at ~0.5% of the points, where its bucket
+    # holds another cell that VTK's parametric tolerance also accepts.)
+    for name, proto in (("ours", vtkMatrixTreeLocator()), ("vtk", vtkCellLocator())):
+        pf = vtkProbeFilter()
+        pf.SetInputData(probe_pd)
+        pf.SetSourceData(ds)
+        pf.SetCellLocatorPrototype(proto)
+        pf.Update()
+        o = pf.GetOutput().GetPointData()
+        out[name] = (vtk_to_numpy(o.GetArray("vtkValidPointMask")).copy(),
+                     vtk_to_numpy(o.GetArray("Velocity")).copy())
+    mask_ours, vel_ours = out["ours"]
+    mask_vtk, vel_vtk = out["vtk"]
+    assert mask_vtk.sum() > 10000
+    assert np.array_equal(mask_ours, mask_vtk)
+    assert np.array_equal(vel_ours, vel_vtk)
+
+
+@pytest.mark.parametrize("tree", [0, 1])
+def test_rays_match_vtk_cell_locator(tree):
+    mesh = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
+    ours = build(vtkMatrixTreeLocator, mesh, TreeType=tree)
+    ref = build(vtkCellLocator, mesh)
+    b = np.array(mesh.GetBounds()).reshape(3, 2)
+    rng = np.random.default_rng(2)
+    gc = vtkGenericCell()
+    mismatches = hits = 0
+    for _ in range(1500):
+        p1 = b[:, 0] + rng.random(3) * (b[:, 1] - b[:, 0])
+        u = rng.normal(size=3)
+        p2 = p1 + u / np.linalg.norm(u) * 0.3
+        res = []
+        for loc in (ours, ref):
+            t, x, pc, sub, cid = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0), reference(0)
+            ok = loc.IntersectWithLine(list(p1), list(p2), 0.0, t, x, pc, sub, cid, gc)
+            res.append((ok, float(t), int(cid)))
+        (oa, ta, ca), (ob, tb, cb) = res
+        hits += ob
+        if oa != ob or (ob and ca != cb and abs(ta - tb) > 1e-9 * max(1.0, abs(tb))):
+            mismatches += 1
+    assert hits > 200
+    assert mismatches == 0
+
+
+def test_closest_points_match_vtk():
+    mesh = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "scenes", "utah_hand", "hand_00.obj"))
+    ours = build(vtkMatrixTreeLocator, mesh)
+    ref = build(vtkCellLocator, mesh)
+    gc = vtkGenericCell()
+    for p in random_points(mesh, 400, seed=9, grow=0.3):
+        d = []
+        for loc in (ours, ref):
+            cp, cid, sub, d2 = [0.0] * 3, reference(0), reference(0), reference(0.0)
+            loc.FindClosestPoint(list(p), cp, gc, cid, sub, d2)
+            d.append(float(d2))
+        assert abs(d[0] - d[1]) <= 1e-12 * max(1.0, d[1])
+    # Within a radius: nothing found beyond it, the same answer inside it.
+    p = random_points(mesh, 1, seed=1, grow=0.0)[0]
+    cp, cid, sub, d2, inside = [0.0] * 3, reference(0), reference(0), reference(0.0), reference(0)
+    assert ours.FindClosestPointWithinRadius(list(p), 1e-9, cp, gc, cid, sub, d2, inside) in (0, 1)
+
+
+def test_cells_within_bounds_and_along_line_match_brute_force():
+    ds = matrixtree.read_grid(os.path.join(CFD, "brick_tets.su2"))
+    ours = build(vtkMatrixTreeLocator, ds)
+    bounds = np.array([[ds.GetCell(i).GetBounds() for i in range(ds.GetNumberOfCells())]]).reshape(-1, 6)
+    q = [0.3, 0.8, 0.2, 0.5, -0.1, 0.2]
+    ids = vtkIdList()
+    ours.FindCellsWithinBounds(q, ids)
+    got = sorted(ids.GetId(i) for i in range(ids.GetNumberOfIds()))
+    want = np.nonzero((bounds[:, 0] <= q[1]) & (bounds[:, 1] >= q[0]) & (bounds[:, 2] <= q[3]) &
+                      (bounds[:, 3] >= q[2]) & (bounds[:, 4] <= q[5]) & (bounds[:, 5] >= q[4]))[0]
+    assert got == list(want)
+    # Along a line: every cell the segment really crosses is listed.
+    p1, p2 = [0.05, 0.1, -0.2], [1.9, 0.9, 0.2]
+    ours.FindCellsAlongLine(p1, p2, 0.0, ids)
+    along = {ids.GetId(i) for i in range(ids.GetNumberOfIds())}
+    crossed = set()
+    for i in range(ds.GetNumberOfCells()):
+        t, x, pc, sub = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0)
+        if ds.GetCell(i).IntersectWithLine(p1, p2, 0.0, t, x, pc, sub):
+            crossed.add(i)
+    assert crossed and crossed <= along
+
+
+def test_all_hits_sorted_and_representation():
+    mesh = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
+    ours = build(vtkMatrixTreeLocator, mesh)
+    b = np.array(mesh.GetBounds()).reshape(3, 2)
+    p1 = [b[0, 0] - 0.01, (b[1, 0] + b[1, 1]) / 2, (b[2, 0] + b[2, 1]) / 2]
+    p2 = [b[0, 1] + 0.01, p1[1], p1[2]]
+    pts, ids = vtkPoints(), vtkIdList()
+    n = ours.IntersectWithLine(p1, p2, pts, ids)
+    assert n >= 2 and n % 2 == 0  # a closed surface is entered and left
+    xs = [pts.GetPoint(i)[0] for i in range(n)]
+    assert xs == sorted(xs)
+    rep = vtkPolyData()
+    ours.GenerateRepresentation(-1, rep)
+    assert rep.GetNumberOfCells() == 6 * ours.GetNumberOfLeaves()
+    counts = vtk_to_numpy(rep.GetCellData().GetArray("NumberOfCells"))
+    assert counts.sum() == 6 * ours.GetNumberOfReferences()
+
+
+def test_rebuild_only_when_needed():
+    ds = matrixtree.read_grid(os.path.join(CFD, "brick_hex.su2"))
+    loc = build(vtkMatrixTreeLocator, ds)
+    t0 = loc.GetBuildTime()
+    loc.BuildLocator()
+    assert loc.GetBuildTime() == t0
+    ds.Modified()
+    loc.BuildLocator()
+    assert loc.GetBuildTime() > t0
+    loc.UseExistingSearchStructureOn()
+    t1 = loc.GetBuildTime()
+    ds.Modified()
+    loc.BuildLocator()
+    assert loc.GetBuildTime() == t1
+    loc.FreeSearchStructure()
+    assert loc.FindCell([0.5, 0.5, 0.0]) >= 0  # rebuilt lazily on the next query
