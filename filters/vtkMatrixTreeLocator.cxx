@@ -5,6 +5,10 @@
 #include "vtkCellArray.h"
 #include "vtkDataSet.h"
 #include "vtkDoubleArray.h"
+#include "vtkFloatArray.h"
+#include "vtkPointSet.h"
+#include "vtkUnsignedCharArray.h"
+#include "vtkUnstructuredGrid.h"
 #include "vtkGenericCell.h"
 #include "vtkIdList.h"
 #include "vtkIntArray.h"
@@ -150,23 +154,67 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   const vtkIdType np = ds->GetNumberOfPoints();
   const vtkIdType nc = ds->GetNumberOfCells();
   std::vector<double> pts(static_cast<size_t>(np) * 3);
-  for (vtkIdType i = 0; i < np; ++i)
+  vtkPointSet* ps = vtkPointSet::SafeDownCast(ds);
+  vtkDataArray* pdata = ps && ps->GetPoints() ? ps->GetPoints()->GetData() : nullptr;
+  if (auto* dbl = vtkDoubleArray::FastDownCast(pdata))
   {
-    ds->GetPoint(i, &pts[3 * i]);
+    std::copy(dbl->GetPointer(0), dbl->GetPointer(0) + 3 * np, pts.begin());
+  }
+  else if (auto* flt = vtkFloatArray::FastDownCast(pdata))
+  {
+    std::copy(flt->GetPointer(0), flt->GetPointer(0) + 3 * np, pts.begin());
+  }
+  else
+  {
+    for (vtkIdType i = 0; i < np; ++i)
+    {
+      ds->GetPoint(i, &pts[3 * i]);
+    }
   }
   std::vector<int64_t> offsets(static_cast<size_t>(nc) + 1, 0), conn;
   std::vector<uint8_t> types(static_cast<size_t>(nc));
-  conn.reserve(static_cast<size_t>(nc) * 4);
-  vtkNew<vtkIdList> ids;
-  for (vtkIdType c = 0; c < nc; ++c)
+  vtkUnstructuredGrid* ug = vtkUnstructuredGrid::SafeDownCast(ds);
+  vtkCellArray* ca = ug ? ug->GetCells() : nullptr;
+  if (ca && ug->GetCellTypesArray() && ca->GetNumberOfCells() == nc)
   {
-    types[c] = static_cast<uint8_t>(ds->GetCellType(c));
-    ds->GetCellPoints(c, ids);
-    for (vtkIdType k = 0; k < ids->GetNumberOfIds(); ++k)
+    // Unstructured grids: copy the cell arrays directly (the generic per-cell loop below costs
+    // more than the whole tree build).
+    const unsigned char* t = ug->GetCellTypesArray()->GetPointer(0);
+    std::copy(t, t + nc, types.begin());
+    auto copyArrays = [&](auto* off, auto* cn) {
+      for (vtkIdType c = 0; c <= nc; ++c)
+      {
+        offsets[c] = static_cast<int64_t>(off->GetValue(c));
+      }
+      conn.resize(static_cast<size_t>(cn->GetNumberOfValues()));
+      for (size_t k = 0; k < conn.size(); ++k)
+      {
+        conn[k] = static_cast<int64_t>(cn->GetValue(static_cast<vtkIdType>(k)));
+      }
+    };
+    if (ca->IsStorage64Bit())
     {
-      conn.push_back(ids->GetId(k));
+      copyArrays(ca->GetOffsetsArray64(), ca->GetConnectivityArray64());
     }
-    offsets[c + 1] = static_cast<int64_t>(conn.size());
+    else
+    {
+      copyArrays(ca->GetOffsetsArray32(), ca->GetConnectivityArray32());
+    }
+  }
+  else
+  {
+    conn.reserve(static_cast<size_t>(nc) * 4);
+    vtkNew<vtkIdList> ids;
+    for (vtkIdType c = 0; c < nc; ++c)
+    {
+      types[c] = static_cast<uint8_t>(ds->GetCellType(c));
+      ds->GetCellPoints(c, ids);
+      for (vtkIdType k = 0; k < ids->GetNumberOfIds(); ++k)
+      {
+        conn.push_back(ids->GetId(k));
+      }
+      offsets[c + 1] = static_cast<int64_t>(conn.size());
+    }
   }
   double progress = 0.2; // a locator is no algorithm: progress goes out as an event
   this->InvokeEvent(vtkCommand::ProgressEvent, &progress);
@@ -249,6 +297,10 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
       x[2] < b[4] - pad || x[2] > b[5] + pad)
     {
       continue;
+    }
+    if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+    {
+      continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
     }
     this->DataSet->GetCell(id, cell);
     if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)

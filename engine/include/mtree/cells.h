@@ -117,12 +117,53 @@ class CellSet {
       for (int e = 0; e < topo->numEdges; ++e) edges[e] = p[topo->edge[e][1]] - p[topo->edge[e][0]];
       return convexOverlapsBox(p, n, normals, nf, edges, topo->numEdges, b);
     }
+    /// The separating-axis test against many boxes of one size (the builder's candidate
+    /// leaves): axes, the cell's projection intervals and the box radii computed once, then one
+    /// dot product per axis and box. Box-normal axes are skipped: candidates come from the
+    /// cell's bounding-box range, so they never separate (skipping stays conservative).
     struct Tester {
-      const Local* cell;
-      Vec3 half;
-      bool overlaps(Vec3 c) const { return cell->overlaps(Box{c - half, c + half}); }
+      static constexpr int kMaxAxes = 12 + 3 * 12;
+      Vec3 axis[kMaxAxes];
+      double lo[kMaxAxes], hi[kMaxAxes], r[kMaxAxes];
+      int n = 0;
+      bool overlaps(Vec3 c) const {
+        for (int k = 0; k < n; ++k) {
+          const double pc = dot(c, axis[k]);
+          if (lo[k] - pc > r[k] || hi[k] - pc < -r[k]) return false;
+        }
+        return true;
+      }
     };
-    Tester tester(Vec3 half) const { return Tester{this, half}; }
+    Tester tester(Vec3 half) const {
+      Tester t;
+      if (!topo) return t;  // no axes: every candidate of the bounding-box range overlaps
+      auto add = [&](Vec3 ax) {
+        if ((ax.x == 0 && ax.y == 0 && ax.z == 0) || t.n == Tester::kMaxAxes) return;
+        double mn = std::numeric_limits<double>::infinity(), mx = -mn;
+        for (int i = 0; i < n; ++i) {
+          const double q = dot(p[i], ax);
+          mn = std::min(mn, q);
+          mx = std::max(mx, q);
+        }
+        t.axis[t.n] = ax;
+        t.lo[t.n] = mn;
+        t.hi[t.n] = mx;
+        t.r[t.n] = half.x * std::fabs(ax.x) + half.y * std::fabs(ax.y) + half.z * std::fabs(ax.z);
+        ++t.n;
+      };
+      for (int f = 0; f < topo->numFaces; ++f) {
+        const int* v = topo->face[f];
+        add(cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]));
+        if (topo->faceSize[f] == 4) add(cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[0]]));
+      }
+      for (int e = 0; e < topo->numEdges; ++e) {
+        const Vec3 d = p[topo->edge[e][1]] - p[topo->edge[e][0]];
+        add(Vec3(0, -d.z, d.y));
+        add(Vec3(d.z, 0, -d.x));
+        add(Vec3(-d.y, d.x, 0));
+      }
+      return t;
+    }
   };
   Local local(size_t c) const {
     Local l;
@@ -137,6 +178,21 @@ class CellSet {
     return l;
   }
   bool overlaps(size_t c, const Box& b) const { return local(c).overlaps(b); }
+
+  /// Cheap pre-test of point location in a tetrahedron: false only if some barycentric
+  /// coordinate of p lies outside [-tol, 1 + tol]. Degenerate or non-finite cases answer true
+  /// (let the exact test decide).
+  bool tetraMayContain(size_t c, Vec3 p, double tol) const {
+    const Vec3 p0 = cellPoint(c, 0), p1 = cellPoint(c, 1), p2 = cellPoint(c, 2), p3 = cellPoint(c, 3);
+    const Vec3 a = p1 - p0, b = p2 - p0, d = p3 - p0, r = p - p0;
+    const double det = dot(a, cross(b, d));
+    if (!(std::fabs(det) > 0) || !std::isfinite(det)) return true;
+    const double inv = 1.0 / det;
+    const double u = dot(r, cross(b, d)) * inv, v = dot(a, cross(r, d)) * inv, w = dot(a, cross(b, r)) * inv;
+    const double s = 1.0 - u - v - w;
+    const double lo = -tol, hi = 1.0 + tol;
+    return u >= lo && u <= hi && v >= lo && v <= hi && w >= lo && w <= hi && s >= lo && s <= hi;
+  }
 
   const std::vector<double>& points() const { return pts_; }
 
