@@ -222,6 +222,8 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   opt.kind = this->TreeType == KDTREE ? mtree::TreeKind::RegularKd : mtree::TreeKind::Octree;
   opt.height = this->Height;
   opt.blockEdge = this->BlockSize;
+  opt.leafScale = this->LeafScale;
+  opt.maxCandidates = this->MaxCandidates;
   opt.threads = this->NumberOfThreads;
   try
   {
@@ -350,6 +352,16 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
           continue;
         }
         slot = id;
+        // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
+        const double* cb = &in.CellBounds[6 * id];
+        mtree::Box box;
+        box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
+        box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
+        double t0 = 0.0, t1 = std::min(best, 1.0);
+        if (!mtree::rayBox(o, d, box, t0, t1))
+        {
+          continue;
+        }
         this->DataSet->GetCell(id, cell);
         if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
         {
@@ -736,6 +748,8 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetTreeType(other->TreeType);
   this->SetHeight(other->Height);
   this->SetBlockSize(other->BlockSize);
+  this->SetLeafScale(other->LeafScale);
+  this->SetMaxCandidates(other->MaxCandidates);
   this->SetNumberOfThreads(other->NumberOfThreads);
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
 }
@@ -747,6 +761,8 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "TreeType: " << (this->TreeType == KDTREE ? "KDTREE" : "OCTREE") << "\n";
   os << indent << "Height: " << this->Height << (this->Height == 0 ? " (automatic)" : "") << "\n";
   os << indent << "BlockSize: " << this->BlockSize << "\n";
+  os << indent << "LeafScale: " << this->LeafScale << "\n";
+  os << indent << "MaxCandidates: " << this->MaxCandidates << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   os << indent << "Built: " << (this->Internals->Valid ? "yes" : "no") << "\n";
   if (this->Internals->Valid)

@@ -74,6 +74,18 @@ public:
   ///@}
 
   ///@{
+  /**
+   * Automatic height: target leaf extent in median cell extents (default 1: point location
+   * tests every candidate of one leaf, so leaves about one cell wide), and the largest mean
+   * number of candidate leaves per cell before the height steps back up (default 16).
+   */
+  vtkSetClampMacro(LeafScale, double, 1e-3, 1e3);
+  vtkGetMacro(LeafScale, double);
+  vtkSetClampMacro(MaxCandidates, double, 1.0, 1e6);
+  vtkGetMacro(MaxCandidates, double);
+  ///@}
+
+  ///@{
   /** Block edge of the block-sparse levels (power of two 1..32, default 8). */
   vtkSetMacro(BlockSize, int);
   vtkGetMacro(BlockSize, int);
@@ -158,6 +170,8 @@ protected:
   int TreeType = OCTREE;
   int Height = 0;
   int BlockSize = 8;
+  double LeafScale = 1.0;
+  double MaxCandidates = 16.0;
   int NumberOfThreads = 0;
   vtkMatrixTreeLocatorInternals* Internals;
 
