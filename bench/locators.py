@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""Cell-locator benchmark: vtkMatrixTreeLocator (octree, kd-tree) against vtkStaticCellLocator,
+vtkCellLocator, vtkCellTreeLocator and vtkModifiedBSPTree, same grid, same seeded points and
+segments, one process per grid (the C++ driver build/bin/locators_bench; a Python loop per
+point would measure Python, not the locators).
+
+    .venv/bin/python bench/locators.py [--grid FILE] [--points N] [--rays N] [--json OUT] [--markdown MD]
+
+With no --grid it runs every CFD grid in ../shared/data/cfd and every mesh in
+../shared/data/meshes. JSON rows: grid, cells, locator, build_ms (median of 3), bytes (ours;
+VTK 9.1's locators do not report theirs: -1), findcell_pts_per_s_1thread, findcell_pts_per_s_all,
+rays_per_s (segments of a quarter of the diagonal from random points, first hit), disagreements
+(FindCell answers that differ from vtkCellLocator's and do not contain the point, or found/not
+found differs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import subprocess
+import tempfile
+
+from _common import ROOT, machine, table, write_outputs
+import matrixtree
+from matrixtree import scenes
+
+DRIVER = os.path.join(ROOT, "build", "bin", "locators_bench")
+
+
+def as_vtk_file(path: str, tmp: str) -> str:
+    """The driver reads .vtu/.vtp: convert anything else (SU2, Exodus, PLY, OBJ)."""
+    ext = os.path.splitext(path)[1].lower()
+    if ext in (".vtu", ".vtp"):
+        return path
+    name = os.path.splitext(os.path.basename(path))[0]
+    if ext in (".ply", ".obj", ".stl", ".vtk"):
+        from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter as W
+        ds, out = matrixtree.read_mesh(path), os.path.join(tmp, name + ".vtp")
+    else:
+        from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter as W
+        ds, out = matrixtree.read_grid(path), os.path.join(tmp, name + ".vtu")
+    w = W()
+    w.SetFileName(out)
+    w.SetInputData(ds)
+    w.Write()
+    return out
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--grid", action="append")
+    p.add_argument("--points", type=int, default=100000)
+    p.add_argument("--rays", type=int, default=10000)
+    p.add_argument("--threads", type=int, default=os.cpu_count())
+    p.add_argument("--json", default="out/bench_locators.json")
+    p.add_argument("--markdown", default=None)
+    a = p.parse_args()
+    if not os.path.exists(DRIVER):
+        p.error(f"{DRIVER} is missing: run scripts/setup.sh (it builds the benchmark driver)")
+    d = scenes.data_dir()
+    paths = a.grid or sorted(glob.glob(os.path.join(d, "cfd", "*.*")) + glob.glob(os.path.join(d, "meshes", "*.*")))
+    paths = [x for x in paths if not x.endswith(".txt")]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            from tqdm import tqdm
+            it = tqdm(paths, desc="grids", unit="grid")
+        except ImportError:
+            it = paths
+        for path in it:
+            f = as_vtk_file(path, tmp)
+            out = subprocess.run([DRIVER, f, str(a.points), str(a.rays), str(a.threads)], capture_output=True,
+                                 text=True, check=True).stdout
+            for line in out.splitlines():
+                r = json.loads(line)
+                r["grid"] = os.path.basename(path)
+                rows.append(r)
+    # Ratios to vtkStaticCellLocator, VTK's fastest, same run.
+    for r in rows:
+        s = next(x for x in rows if x["grid"] == r["grid"] and x["locator"] == "vtkStaticCellLocator")
+        r["findcell_speedup_vs_static"] = r["findcell_pts_per_s_1thread"] / s["findcell_pts_per_s_1thread"]
+        r["rays_speedup_vs_static"] = r["rays_per_s"] / s["rays_per_s"]
+        r["build_ratio_vs_static"] = r["build_ms"] / s["build_ms"]
+        r["machine"] = machine()
+    cols = ["grid", "cells", "locator", "build_ms", "bytes", "findcell_pts_per_s_1thread", "findcell_pts_per_s_all",
+            "rays_per_s", "disagreements", "findcell_speedup_vs_static", "rays_speedup_vs_static",
+            "build_ratio_vs_static"]
+    print(table(rows, cols))
+    write_outputs(a.json, rows, a.markdown, rows, cols)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
