@@ -223,6 +223,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   opt.height = this->Height;
   opt.blockEdge = this->BlockSize;
   opt.leafScale = this->LeafScale;
+  opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
   opt.maxCandidates = this->MaxCandidates;
   opt.threads = this->NumberOfThreads;
   try
@@ -749,6 +750,7 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetHeight(other->Height);
   this->SetBlockSize(other->BlockSize);
   this->SetLeafScale(other->LeafScale);
+  this->SetExactOverlap(other->ExactOverlap);
   this->SetMaxCandidates(other->MaxCandidates);
   this->SetNumberOfThreads(other->NumberOfThreads);
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
@@ -761,6 +763,7 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "TreeType: " << (this->TreeType == KDTREE ? "KDTREE" : "OCTREE") << "\n";
   os << indent << "Height: " << this->Height << (this->Height == 0 ? " (automatic)" : "") << "\n";
   os << indent << "BlockSize: " << this->BlockSize << "\n";
+  os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";
   os << indent << "LeafScale: " << this->LeafScale << "\n";
   os << indent << "MaxCandidates: " << this->MaxCandidates << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";

@@ -86,6 +86,16 @@ public:
   ///@}
 
   ///@{
+  /**
+   * Exact cell/leaf overlap (separating-axis test, default on) or bounding-box overlap (faster
+   * build, more cells per leaf, hence more candidates per query; answers are the same).
+   */
+  vtkSetMacro(ExactOverlap, bool);
+  vtkGetMacro(ExactOverlap, bool);
+  vtkBooleanMacro(ExactOverlap, bool);
+  ///@}
+
+  ///@{
   /** Block edge of the block-sparse levels (power of two 1..32, default 8). */
   vtkSetMacro(BlockSize, int);
   vtkGetMacro(BlockSize, int);
@@ -170,6 +180,7 @@ protected:
   int TreeType = OCTREE;
   int Height = 0;
   int BlockSize = 8;
+  bool ExactOverlap = true;
   double LeafScale = 1.0;
   double MaxCandidates = 16.0;
   int NumberOfThreads = 0;
