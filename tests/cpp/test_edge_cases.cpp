@@ -26,6 +26,8 @@
 
 namespace {
 
+using mtest::aimedRays;
+using mtest::pointOn;
 using mtest::Ray;
 using mtree::Box;
 using mtree::MatrixTree;
@@ -55,46 +57,7 @@ TriangleMesh merged(const TriangleMesh& a, const TriangleMesh& b) {
   return TriangleMesh(std::move(p), std::move(t));
 }
 
-// A random point of triangle i (barycentric, uniform).
-Vec3 pointOn(const TriangleMesh& m, size_t i, mtest::Rng& rng) {
-  double u = rng.uniform(), v = rng.uniform();
-  if (u + v > 1) u = 1 - u, v = 1 - v;
-  const Vec3 a = m.vertex(i, 0), b = m.vertex(i, 1), c = m.vertex(i, 2);
-  return a + (b - a) * u + (c - a) * v;
-}
 
-// Rays that meet the scene: half from outside its box aimed at points of random triangles, a
-// quarter from inside with random directions, a quarter axis-parallel through triangle points.
-std::vector<Ray> aimedRays(const TriangleMesh& m, int n, uint64_t seed) {
-  mtest::Rng rng(seed);
-  const Box b = mtest::meshBounds(m);
-  const double diag = std::max(mtree::norm(b.extent()), 1e-300);
-  std::vector<Ray> rays(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) {
-    Ray& r = rays[i];
-    const Vec3 target = pointOn(m, rng.below(static_cast<uint32_t>(m.size())), rng);
-    switch (i % 4) {
-      case 0:
-      case 1:
-        r.o = b.center() + rng.direction() * (diag * rng.uniform(0.6, 2.0));
-        r.d = target - r.o;
-        break;
-      case 2:
-        r.o = rng.inBox(b);
-        r.d = rng.direction();
-        break;
-      default: {
-        const int a = static_cast<int>(rng.below(3));
-        r.d = Vec3(0, 0, 0);
-        r.d[a] = rng.below(2) ? 1.0 : -1.0;
-        r.o = target;
-        r.o[a] -= r.d[a] * diag;
-        break;
-      }
-    }
-  }
-  return rays;
-}
 
 struct Agreement {
   mtest::HitComparison first;

@@ -38,6 +38,8 @@
 
 namespace {
 
+using mtest::aimedRays;
+using mtest::pointOn;
 using mtest::Ray;
 using mtree::Box;
 using mtree::RayHit;
@@ -71,13 +73,6 @@ int raysFor(size_t triangles) {
   return static_cast<int>(std::min(1e5, std::max(2e4, n)));
 }
 
-// A random point of triangle i (barycentric, uniform).
-Vec3 pointOn(const TriangleMesh& m, size_t i, mtest::Rng& rng) {
-  double u = rng.uniform(), v = rng.uniform();
-  if (u + v > 1) u = 1 - u, v = 1 - v;
-  const Vec3 a = m.vertex(i, 0), b = m.vertex(i, 1), c = m.vertex(i, 2);
-  return a + (b - a) * u + (c - a) * v;
-}
 
 std::vector<Ray> makeRays(const TriangleMesh& mesh, const SahKdTree& tree, int n, uint64_t seed) {
   mtest::Rng rng(seed);
@@ -376,38 +371,6 @@ INSTANTIATE_TEST_SUITE_P(RealMeshes, RealMeshSah, ::testing::ValuesIn(mtest::rea
 // Helpers of the synthetic tests
 // ---------------------------------------------------------------------------------------------
 
-// Rays that meet the scene: half from outside its box aimed at points of random triangles, a
-// quarter from inside with random directions, a quarter axis-parallel through triangle points.
-std::vector<Ray> aimedRays(const TriangleMesh& m, int n, uint64_t seed) {
-  mtest::Rng rng(seed);
-  const Box b = mtest::meshBounds(m);
-  const double diag = std::max(mtree::norm(b.extent()), 1e-300);
-  std::vector<Ray> rays(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) {
-    Ray& r = rays[i];
-    const Vec3 target = pointOn(m, rng.below(static_cast<uint32_t>(m.size())), rng);
-    switch (i % 4) {
-      case 0:
-      case 1:
-        r.o = b.center() + rng.direction() * (diag * rng.uniform(0.6, 2.0));
-        r.d = target - r.o;
-        break;
-      case 2:
-        r.o = rng.inBox(b);
-        r.d = rng.direction();
-        break;
-      default: {
-        const int a = static_cast<int>(rng.below(3));
-        r.d = Vec3(0, 0, 0);
-        r.d[a] = rng.below(2) ? 1.0 : -1.0;
-        r.o = target;
-        r.o[a] -= r.d[a] * diag;
-        break;
-      }
-    }
-  }
-  return rays;
-}
 
 struct Agreement {
   uint64_t rays = 0, hits = 0, idDiffers = 0, mismatches = 0, anyWrong = 0, differsFromStack = 0;
