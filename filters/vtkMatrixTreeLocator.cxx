@@ -11,6 +11,8 @@
 #include "vtkUnstructuredGrid.h"
 #include "vtkGenericCell.h"
 #include "vtkIdList.h"
+#include "vtkIdTypeArray.h"
+#include "vtkFieldData.h"
 #include "vtkIntArray.h"
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
@@ -715,6 +717,161 @@ void vtkMatrixTreeLocator::GenerateRepresentation(int level, vtkPolyData* pd)
   pd->SetPolys(quads);
   pd->GetCellData()->AddArray(levels);
   pd->GetCellData()->AddArray(counts);
+}
+
+//------------------------------------------------------------------------------
+vtkIdType vtkMatrixTreeLocator::GenerateNodes(int minLevel, int maxLevel, vtkUnstructuredGrid* output)
+{
+  if (!output)
+  {
+    return 0;
+  }
+  output->Initialize();
+  if (!this->EnsureBuilt())
+  {
+    return 0;
+  }
+  const mtree::MatrixTree& tree = this->Internals->Tree;
+  vtkNew<vtkPoints> pts;
+  pts->SetDataTypeToDouble();
+  vtkNew<vtkCellArray> cells;
+  vtkNew<vtkIntArray> levels;
+  levels->SetName("level");
+  vtkNew<vtkDoubleArray> occupancy;
+  occupancy->SetName("occupancy");
+  vtkNew<vtkIdTypeArray> counts;
+  counts->SetName("cell_count");
+  vtkNew<vtkIntArray> height;
+  height->SetName("tree_height");
+  height->InsertNextValue(tree.empty() ? 0 : tree.height());
+  output->GetFieldData()->AddArray(height);
+  if (tree.empty())
+  {
+    output->SetPoints(pts);
+    output->SetCells(VTK_VOXEL, cells);
+    return 0;
+  }
+  const int H = tree.height();
+  const int hi = (maxLevel < 0 || maxLevel > H) ? H : maxLevel;
+  const int lo = std::max(0, std::min(minLevel, hi));
+
+  // Distinct (node, cell) pairs level by level, bottom-up: the pairs of level l are those of
+  // level l + 1 with each node replaced by its parent, deduplicated. Node keys are linear
+  // indices in the level's full grid (at most 2^43 nodes: the leaf pointer matrix is capped).
+  using Pair = std::pair<uint64_t, uint32_t>;
+  auto linear = [&](int l, const int c[3]) {
+    return static_cast<uint64_t>(c[0]) +
+      (static_cast<uint64_t>(1) << tree.logDim(l, 0)) *
+      (static_cast<uint64_t>(c[1]) + (static_cast<uint64_t>(1) << tree.logDim(l, 1)) * static_cast<uint64_t>(c[2]));
+  };
+  auto unlinear = [&](int l, uint64_t k, int c[3]) {
+    c[0] = static_cast<int>(k & ((uint64_t(1) << tree.logDim(l, 0)) - 1));
+    k >>= tree.logDim(l, 0);
+    c[1] = static_cast<int>(k & ((uint64_t(1) << tree.logDim(l, 1)) - 1));
+    c[2] = static_cast<int>(k >> tree.logDim(l, 1));
+  };
+  std::vector<Pair> pairs;
+  pairs.reserve(tree.primitiveIndices().size());
+  {
+    const auto& m = tree.leafLevel();
+    for (size_t e = 0; e < m.data().size(); ++e)
+    {
+      const MtLeafRange r = m.data()[e];
+      if (r.begin == MT_NULL)
+      {
+        continue;
+      }
+      int c[3];
+      m.entryCoords(static_cast<uint32_t>(e), c);
+      const uint64_t key = linear(H, c);
+      for (uint32_t k = r.begin; k < r.end; ++k)
+      {
+        pairs.emplace_back(key, tree.primitiveIndices()[k]);
+      }
+    }
+    std::sort(pairs.begin(), pairs.end());
+  }
+  auto addBox = [&](int l, const int c[3], double occ, vtkIdType n) {
+    const mtree::Box b = tree.nodeBox(l, c);
+    vtkIdType ids[8];
+    for (int k = 0; k < 8; ++k)
+    {
+      ids[k] = pts->InsertNextPoint(
+        (k & 1) ? b.hi.x : b.lo.x, (k & 2) ? b.hi.y : b.lo.y, (k & 4) ? b.hi.z : b.lo.z);
+    }
+    cells->InsertNextCell(8, ids);
+    levels->InsertNextValue(l);
+    occupancy->InsertNextValue(occ);
+    counts->InsertNextValue(n);
+  };
+  // Emits the nodes of level l (pairs sorted by node) in node-key order.
+  auto emitLevel = [&](int l) {
+    int s[3] = { 0, 0, 0 };
+    if (l < H)
+    {
+      for (int a = 0; a < 3; ++a)
+      {
+        s[a] = tree.logDim(l + 1, a) - tree.logDim(l, a);
+      }
+    }
+    const double children = static_cast<double>(1 << (s[0] + s[1] + s[2]));
+    for (size_t i = 0; i < pairs.size();)
+    {
+      size_t j = i;
+      while (j < pairs.size() && pairs[j].first == pairs[i].first)
+      {
+        ++j;
+      }
+      int c[3];
+      unlinear(l, pairs[i].first, c);
+      double occ = 1.0;
+      if (l < H)
+      {
+        int present = 0;
+        ForEachChild(tree, l, c, [&](const int*) { ++present; });
+        occ = present / children;
+      }
+      addBox(l, c, occ, static_cast<vtkIdType>(j - i));
+      i = j;
+    }
+  };
+  // Output order: levels from lo to hi. Collect per level bottom-up, then append in order.
+  std::vector<std::vector<Pair>> perLevel(static_cast<size_t>(hi - lo + 1));
+  for (int l = H; l >= lo; --l)
+  {
+    if (l < H)
+    {
+      int s[3];
+      for (int a = 0; a < 3; ++a)
+      {
+        s[a] = tree.logDim(l + 1, a) - tree.logDim(l, a);
+      }
+      for (Pair& p : pairs)
+      {
+        int c[3];
+        unlinear(l + 1, p.first, c);
+        const int pc[3] = { c[0] >> s[0], c[1] >> s[1], c[2] >> s[2] };
+        p.first = linear(l, pc);
+      }
+      std::sort(pairs.begin(), pairs.end());
+      pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+    }
+    if (l <= hi)
+    {
+      perLevel[static_cast<size_t>(l - lo)] = pairs;
+    }
+  }
+  for (int l = lo; l <= hi; ++l)
+  {
+    pairs.swap(perLevel[static_cast<size_t>(l - lo)]);
+    emitLevel(l);
+  }
+  output->SetPoints(pts);
+  output->SetCells(VTK_VOXEL, cells);
+  output->GetCellData()->AddArray(levels);
+  output->GetCellData()->AddArray(occupancy);
+  output->GetCellData()->AddArray(counts);
+  return cells->GetNumberOfCells();
 }
 
 //------------------------------------------------------------------------------

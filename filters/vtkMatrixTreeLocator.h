@@ -39,6 +39,7 @@
 class vtkIdList;
 class vtkGenericCell;
 class vtkPolyData;
+class vtkUnstructuredGrid;
 struct vtkMatrixTreeLocatorInternals;
 
 class MATRIXTREEFILTERS_EXPORT vtkMatrixTreeLocator : public vtkAbstractCellLocator
@@ -119,6 +120,19 @@ public:
    * inner nodes).
    */
   void GenerateRepresentation(int level, vtkPolyData* pd) override;
+  /**
+   * The tree as a data set: one VTK_VOXEL per existing node of levels minLevel..maxLevel
+   * (0 = root; a negative or too large maxLevel means the leaf level), with cell data
+   * - "level" (int): the node's level;
+   * - "occupancy" (double): for an inner node, the fraction of its children that exist; 1 for a
+   *   leaf (a leaf exists only when it holds cells);
+   * - "cell_count" (vtkIdType): the number of distinct cells of the data set referenced by the
+   *   leaves below the node, i.e. the cells that overlap it under the build's overlap test
+   *   (exact or bounding box). For a leaf it is the number of candidates a query tests.
+   * Field data "tree_height" holds the height. Returns the number of nodes written (0 and an
+   * empty output when the locator cannot be built).
+   */
+  vtkIdType GenerateNodes(int minLevel, int maxLevel, vtkUnstructuredGrid* output);
 
   // ---- vtkAbstractCellLocator ----
   vtkIdType FindCell(double x[3]) override { return this->Superclass::FindCell(x); }
