@@ -1,0 +1,256 @@
+// Volume ray casting on the block-sparse encoding (paper §3 and its volume-rendering result:
+// replacing the matrix-tree CSR encoding by block-sparse matrices made ray casting 75-280%
+// faster, because a sample costs two memory reads: the pointer matrix, then the block).
+//
+//   BlockSparseVolume  the scalar field as a BlockSparseMatrix<float> of DIM^3-voxel blocks.
+//                      Only blocks that a visible sample can read are allocated ("model only
+//                      what a scene requires"): a cell (8 voxels) is visible when the opacity
+//                      function is non-zero somewhere on [min, max] of its corners; every voxel
+//                      block holding a corner of a visible cell is allocated, nothing else.
+//                      Above the blocks, the matrix-tree levels: level 0 marks the bricks of
+//                      DIM^3 cells that hold a visible cell, level l groups 2^l x 2^l x 2^l bricks
+//                      (an implicit octree: parents are computed, not stored).
+//   TransferTable      post-classification lookup table (colour + opacity per unit length) with
+//                      O(1) range-max opacity queries (a sparse table), used to classify cells.
+//   renderVolume       ray marching with trilinear interpolation, front-to-back compositing with
+//                      opacity corrected for the step length, early ray termination, optional
+//                      gradient shading, hierarchical empty-space skipping, OpenMP over rows.
+//
+// Exactness of the skipping: a cell that is not visible yields opacity exactly 0 at every sample
+// (the interpolated value lies in [min, max] of the corners, the table lookup is monotone, and
+// the range query is widened by one entry for round-off), so skipping it, or reading it from an
+// absent block, changes nothing. Samples sit at t_k = tEnter + k * step in both modes, so
+// rendering with and without skipping gives the same image bit for bit.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "mtree/block_sparse.h"
+#include "mtree/geometry.h"
+
+namespace mtree {
+
+/// Colour and opacity sampled at `size` evenly spaced scalars over [lo, hi] (entry 0 at lo,
+/// entry size-1 at hi); alpha is the opacity of a segment of length `unitDistance`.
+/// Scalars outside [lo, hi] are clamped to the end entries (VTK's clamping behaviour).
+class TransferTable {
+ public:
+  TransferTable() = default;
+  /// rgba: 4 floats per entry in [0, 1]. Throws std::invalid_argument on bad input.
+  TransferTable(double lo, double hi, std::vector<float> rgba, double unitDistance = 1.0);
+
+  int size() const { return static_cast<int>(rgba_.size() / 4); }
+  double lo() const { return lo_; }
+  double hi() const { return hi_; }
+  double unitDistance() const { return unit_; }
+  const std::vector<float>& rgba() const { return rgba_; }
+
+  /// Entry of scalar v: nearest entry, clamped. Monotone in v (each float op is), which the
+  /// visibility classification relies on.
+  int index(float v) const {
+    const float x = (v - flo_) * fscale_ + 0.5f;
+    if (!(x > 0.f)) return 0;  // also catches NaN
+    const int i = static_cast<int>(x);
+    return i < last_ ? i : last_;
+  }
+  int index(double v) const { return index(static_cast<float>(v)); }
+  /// Largest alpha over every entry a scalar in [a, b] can map to, widened by one entry each
+  /// side for interpolation round-off. O(1) (sparse table of range maxima).
+  float maxOpacity(float a, float b) const;
+
+ private:
+  double lo_ = 0, hi_ = 1, unit_ = 1;
+  float flo_ = 0, fscale_ = 1;
+  int last_ = 0;
+  std::vector<float> rgba_;
+  std::vector<std::vector<float>> rangeMax_;  // rangeMax_[l][i] = max alpha over [i, i + 2^l)
+};
+
+/// Build settings of a BlockSparseVolume.
+struct VolumeBuildOptions {
+  bool sparse = true;  // false: allocate every block (the dense reference, same code path)
+  int threads = 0;     // 0 = OpenMP's default
+};
+
+/// Memory and classification statistics, the paper's currency.
+struct VolumeStats {
+  uint64_t voxels = 0, cells = 0, visibleCells = 0;
+  uint32_t blocksAllocated = 0;  // voxel blocks holding a corner of a visible cell
+  uint32_t blocksDense = 0;      // voxel blocks of the whole grid (the pointer matrix size)
+  uint32_t bricksVisible = 0;    // level-0 bricks (DIM^3 cells) holding a visible cell
+  uint32_t bricks = 0;
+  uint64_t blockBytes = 0;       // allocated blocks * DIM^3 * 4: the visible blocks' payload
+  uint64_t bytes = 0;            // everything held: blocks + pointer matrix + ranges + levels
+  uint64_t denseBytes = 0;       // voxels * 4: a dense float copy
+  int levels = 0;                // matrix-tree levels above the blocks, level 0 included
+  uint64_t nonFinite = 0;        // NaN/inf voxels replaced by the lowest finite value
+  double buildMs = 0;
+};
+
+class BlockSparseVolume {
+ public:
+  static constexpr int LOG2DIM = 3;
+  static constexpr int DIM = 1 << LOG2DIM;  // voxels per block edge, cells per brick edge
+
+  /// Classifies `values` (x fastest, dims[0]*dims[1]*dims[2] of them) with `tf` and stores
+  /// the blocks visible cells read. Any arithmetic type. Non-finite values are replaced by the
+  /// lowest finite value (counted in stats().nonFinite). Throws std::invalid_argument for
+  /// fewer than 2 points along an axis (no cell to interpolate in) or no finite value.
+  template <typename T>
+  void build(const T* values, const int dims[3], const TransferTable& tf,
+             const VolumeBuildOptions& opt = VolumeBuildOptions());
+
+  int dim(int a) const { return vox_.dim(a); }
+  const BlockSparseMatrix<float>& voxels() const { return vox_; }
+  const VolumeStats& stats() const { return stats_; }
+  float minValue() const { return vmin_; }
+  float maxValue() const { return vmax_; }
+
+  /// The 8 corner values of cell (i, j, k) (x fastest: c[dx + 2 dy + 4 dz]). False when a
+  /// corner's block is absent: such a cell is invisible, its samples have opacity 0.
+  bool cellCorners(int i, int j, int k, float c[8]) const {
+    const MtSparseDesc& d = vox_.desc();
+    const int m0 = (1 << d.logBlock[0]) - 1, m1 = (1 << d.logBlock[1]) - 1, m2 = (1 << d.logBlock[2]) - 1;
+    if ((i & m0) != m0 && (j & m1) != m1 && (k & m2) != m2) {
+      // Fast path (7/8 of the cells per axis): all corners in one block, one pointer read.
+      const uint32_t b = ptr_[vox_.pointerIndex(i, j, k)];
+      if (b == MT_NULL) return false;
+      const float* p = data_ + size_t(b) * d.blockVolume + vox_.localIndex(i, j, k);
+      const int sy = 1 << d.logBlock[0], sz = 1 << (d.logBlock[0] + d.logBlock[1]);
+      c[0] = p[0]; c[1] = p[1]; c[2] = p[sy]; c[3] = p[sy + 1];
+      c[4] = p[sz]; c[5] = p[sz + 1]; c[6] = p[sz + sy]; c[7] = p[sz + sy + 1];
+      return true;
+    }
+    for (int n = 0; n < 8; ++n) {
+      const float* p = vox_.find(i + (n & 1), j + ((n >> 1) & 1), k + (n >> 2));
+      if (!p) return false;
+      c[n] = *p;
+    }
+    return true;
+  }
+
+  /// Trilinear value at continuous index position (x, y, z), clamped into the grid. False
+  /// where the cell is invisible (an absent block); `v` is then unset.
+  bool sample(double x, double y, double z, double& v) const;
+
+  /// Level-l node (i, j, k) of the empty-space hierarchy holds a visible cell.
+  bool nodeVisible(int level, int i, int j, int k) const {
+    const LevelGrid& g = levels_[level];
+    return g.occ[(size_t(k) * g.n[1] + j) * g.n[0] + i] != 0;
+  }
+  int levelCount() const { return static_cast<int>(levels_.size()); }
+  int levelDim(int level, int a) const { return levels_[level].n[a]; }
+  /// Per-brick value range [min, max] over the brick's cells' corners (level-0 index).
+  float brickMin(int i, int j, int k) const { return brickMin_[(size_t(k) * levels_[0].n[1] + j) * levels_[0].n[0] + i]; }
+  float brickMax(int i, int j, int k) const { return brickMax_[(size_t(k) * levels_[0].n[1] + j) * levels_[0].n[0] + i]; }
+
+ private:
+  struct LevelGrid {
+    int n[3] = {1, 1, 1};
+    std::vector<uint8_t> occ;
+  };
+  void classify(const TransferTable& tf, const VolumeBuildOptions& opt, std::vector<float>& dense);
+
+  BlockSparseMatrix<float> vox_;
+  const uint32_t* ptr_ = nullptr;
+  const float* data_ = nullptr;
+  std::vector<LevelGrid> levels_;
+  std::vector<float> brickMin_, brickMax_;
+  float vmin_ = 0, vmax_ = 0;
+  VolumeStats stats_;
+};
+
+/// A pinhole (or parallel) camera as vtkCamera describes one: position, focal point, view up,
+/// vertical view angle; ParallelProjection with ParallelScale (half the view height).
+struct VolumeCamera {
+  Vec3 position{0, 0, 1}, focalPoint{0, 0, 0}, viewUp{0, 1, 0};
+  double viewAngle = 30;  // degrees, vertical
+  bool parallel = false;
+  double parallelScale = 1;
+  int width = 512, height = 512;
+};
+
+/// Where the volume sits in the world: point (i, j, k) is at origin + (i, j, k) * spacing
+/// (axis-aligned, as vtkImageData without a direction matrix). Spacing may be negative, not 0.
+struct VolumeGeometry {
+  double origin[3] = {0, 0, 0};
+  double spacing[3] = {1, 1, 1};
+};
+
+/// Speed/accuracy controls (docs/guide.md, "Volume ray casting", lists their measured effect).
+struct VolumeRenderOptions {
+  double sampleDistance = 1.0;       // world units between samples along a ray; smaller: slower, more exact
+  double imageSampleDistance = 1.0;  // >1 casts (W/isd) x (H/isd) rays and interpolates bilinearly
+  double earlyTermination = 0.99;    // stop a ray when its opacity reaches this; >= 1: never
+  bool doublePrecision = false;      // accumulate (interpolation + compositing) in double
+  bool emptySpaceSkipping = true;    // skip invisible nodes of the matrix-tree levels
+  bool shade = false;                // gradient (of the trilinear interpolant) shading, headlight
+  double ambient = 0.2, diffuse = 0.7, specular = 0.2, specularPower = 10;
+  int threads = 0;                   // 0 = OpenMP's default
+};
+
+struct VolumeImage {
+  int width = 0, height = 0;
+  std::vector<float> rgba;  // premultiplied colour + opacity, 4 per pixel, row 0 at the bottom
+  uint64_t rays = 0, samples = 0, skips = 0;  // rays cast, samples classified, nodes skipped
+  double ms = 0;
+};
+
+/// Renders `vol` (classified with `tf`) seen through `cam`. Throws std::invalid_argument on
+/// a zero spacing, a non-positive sample distance or image size, or a degenerate camera.
+VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
+                         const VolumeCamera& cam, const VolumeRenderOptions& opt);
+
+// --------------------------------------------------------------------------------------------
+// BlockSparseVolume::build: the typed part (conversion), the rest is in volume.cpp.
+
+template <typename T>
+void BlockSparseVolume::build(const T* values, const int dims[3], const TransferTable& tf,
+                              const VolumeBuildOptions& opt) {
+  static_assert(std::is_arithmetic<T>::value, "BlockSparseVolume::build: arithmetic scalars only");
+  if (!values) throw std::invalid_argument("BlockSparseVolume: no scalars");
+  for (int a = 0; a < 3; ++a)
+    if (dims[a] < 2)
+      throw std::invalid_argument("BlockSparseVolume: need at least 2 points along every axis (got " +
+                                  std::to_string(dims[0]) + "x" + std::to_string(dims[1]) + "x" +
+                                  std::to_string(dims[2]) + "): a 1-voxel-thick volume has no cell");
+  if (tf.size() < 2) throw std::invalid_argument("BlockSparseVolume: empty transfer table");
+  const int64_t n = int64_t(dims[0]) * dims[1] * dims[2];
+  // The conversion to float runs once per build; classify() reads it and copies only the
+  // visible blocks into the block-sparse matrix, then it is freed.
+  std::vector<float> dense(static_cast<size_t>(n));
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  uint64_t bad = 0;
+#pragma omp parallel for num_threads(resolveThreads(opt.threads)) \
+    reduction(min : lo) reduction(max : hi) reduction(+ : bad) schedule(static)
+  for (int64_t i = 0; i < n; ++i) {
+    const float f = static_cast<float>(values[i]);
+    dense[size_t(i)] = f;
+    if (std::isfinite(f)) {
+      lo = std::min(lo, double(f));
+      hi = std::max(hi, double(f));
+    } else {
+      ++bad;
+    }
+  }
+  if (!(lo <= hi)) throw std::invalid_argument("BlockSparseVolume: no finite scalar value");
+  if (bad) {
+    for (float& f : dense)
+      if (!std::isfinite(f)) f = static_cast<float>(lo);
+  }
+  vmin_ = static_cast<float>(lo);
+  vmax_ = static_cast<float>(hi);
+  vox_.reset(dims[0], dims[1], dims[2], DIM, 0.f);
+  stats_ = VolumeStats{};
+  stats_.nonFinite = bad;
+  classify(tf, opt, dense);
+}
+
+}  // namespace mtree

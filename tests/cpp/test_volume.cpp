@@ -1,0 +1,475 @@
+// Volume ray casting on the block-sparse encoding (engine/include/mtree/volume.h), checked
+// against analytic transmittance, a dense brute-force sampler and marcher written here, and
+// itself with empty-space skipping switched off.
+#include <gtest/gtest.h>
+
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkStructuredPoints.h>
+#include <vtkStructuredPointsReader.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "mtree/volume.h"
+
+using namespace mtree;
+
+namespace {
+
+std::string dataDir() {
+  const char* d = std::getenv("MATRIXTREE_DATA");
+  return d ? d : std::string(MATRIXTREE_SOURCE_DIR) + "/../shared/data";
+}
+
+/// White, constant opacity `alpha` per unit length over [lo, hi].
+TransferTable constantTable(double lo, double hi, float alpha, int n = 64) {
+  std::vector<float> rgba;
+  for (int i = 0; i < n; ++i) rgba.insert(rgba.end(), {1.f, 1.f, 1.f, alpha});
+  return TransferTable(lo, hi, rgba, 1.0);
+}
+
+/// Transparent below `threshold` (fraction of [lo, hi]), a colour and opacity ramp above.
+TransferTable rampTable(double lo, double hi, double threshold, float maxAlpha, int n = 1024) {
+  std::vector<float> rgba;
+  for (int i = 0; i < n; ++i) {
+    const double s = double(i) / (n - 1);
+    const double a = s <= threshold ? 0.0 : maxAlpha * (s - threshold) / (1 - threshold);
+    rgba.insert(rgba.end(), {float(s), float(0.5 * s + 0.2), float(1 - s), float(a)});
+  }
+  return TransferTable(lo, hi, rgba, 1.0);
+}
+
+struct Dense {
+  int n[3];
+  std::vector<float> v;
+  float at(int i, int j, int k) const { return v[(size_t(k) * n[1] + j) * n[0] + i]; }
+  /// Brute-force trilinear value, in double, straight from the array.
+  double sample(double x, double y, double z) const {
+    const double q[3] = {x, y, z};
+    int c[3];
+    double f[3];
+    for (int a = 0; a < 3; ++a) {
+      c[a] = std::min(std::max(int(std::floor(q[a])), 0), n[a] - 2);
+      f[a] = std::min(1.0, std::max(0.0, q[a] - c[a]));
+    }
+    double s = 0;
+    for (int m = 0; m < 8; ++m) {
+      const int dx = m & 1, dy = (m >> 1) & 1, dz = m >> 2;
+      s += (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]) *
+           at(c[0] + dx, c[1] + dy, c[2] + dz);
+    }
+    return s;
+  }
+};
+
+/// Blobs (Gaussian bumps) in a zero background: most of the volume is empty space.
+Dense blobs(int nx, int ny, int nz, unsigned seed) {
+  Dense d{{nx, ny, nz}, {}};
+  d.v.assign(size_t(nx) * ny * nz, 0.f);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int b = 0; b < 6; ++b) {
+    const double cx = u(rng) * nx, cy = u(rng) * ny, cz = u(rng) * nz, r = 2 + 4 * u(rng);
+    for (int k = 0; k < nz; ++k)
+      for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+          const double dd = ((i - cx) * (i - cx) + (j - cy) * (j - cy) + (k - cz) * (k - cz)) / (r * r);
+          d.v[(size_t(k) * ny + j) * nx + i] += float(100 * std::exp(-dd));
+        }
+  }
+  return d;
+}
+
+VolumeCamera lookAt(Vec3 pos, Vec3 focal, int w = 1, int h = 1) {
+  VolumeCamera c;
+  c.position = pos;
+  c.focalPoint = focal;
+  c.viewUp = std::fabs(normalized(focal - pos).y) > 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+  c.viewAngle = 30;
+  c.width = w;
+  c.height = h;
+  return c;
+}
+
+double maxDiff(const VolumeImage& a, const VolumeImage& b) {
+  double m = 0;
+  for (size_t i = 0; i < a.rgba.size(); ++i) m = std::max(m, double(std::fabs(a.rgba[i] - b.rgba[i])));
+  return m;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Analytic: a constant-density box of extinction sigma. The opacity per unit length is
+// 1 - exp(-sigma), corrected per step to 1 - exp(-sigma dt); N samples give exp(-sigma N dt),
+// N dt in [L, L + dt].
+
+class ConstantBox : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const int dims[3] = {11, 7, 5};  // box [0,10] x [0,6] x [0,4] at unit spacing (x 0.5 below)
+    std::vector<float> v(size_t(dims[0]) * dims[1] * dims[2], 1.f);
+    tf = constantTable(0.0, 2.0, float(1 - std::exp(-sigma)));
+    vol.build(v.data(), dims, tf);
+    geo.spacing[0] = 1.0;
+    geo.spacing[1] = 0.5;  // world box [0,10] x [0,3] x [0,4]
+    geo.spacing[2] = 1.0;
+    geo.origin[2] = -2;  // z in [-2, 2]
+    opt.sampleDistance = 1e-4;
+    opt.earlyTermination = 1.0;
+    opt.threads = 1;
+  }
+  double transmittance(const VolumeCamera& cam) {
+    const VolumeImage img = renderVolume(vol, geo, tf, cam, opt);
+    return 1.0 - img.rgba[3];
+  }
+  const double sigma = 0.3;
+  TransferTable tf;
+  BlockSparseVolume vol;
+  VolumeGeometry geo;
+  VolumeRenderOptions opt;
+};
+
+TEST_F(ConstantBox, AxisRayTransmittanceIsExpMinusSigmaL) {
+  // Through the whole box along x at y = 1.5, z = 0.3: L = 10.
+  const double T = transmittance(lookAt({-5, 1.5, 0.3}, {20, 1.5, 0.3}));
+  EXPECT_NEAR(T, std::exp(-sigma * 10), 1e-3);
+  EXPECT_GT(std::fabs(T - std::exp(-sigma * 9.9)), 1e-3) << "the test would not notice a wrong length";
+}
+
+TEST_F(ConstantBox, DiagonalRayTransmittance) {
+  // From corner (0,0,-2) to corner (10,3,2) and beyond: L = |(10,3,4)|.
+  const double L = std::sqrt(100.0 + 9 + 16);
+  const double T = transmittance(lookAt({-10, -3, -6}, {20, 6, 6}));
+  EXPECT_NEAR(T, std::exp(-sigma * L), 1e-3);
+}
+
+TEST_F(ConstantBox, RayStartingInsideTheVolume) {
+  // Eye at (4, 1, 0) looking along -x: L = 4.
+  const double T = transmittance(lookAt({4, 1, 0}, {-10, 1, 0}));
+  EXPECT_NEAR(T, std::exp(-sigma * 4), 1e-3);
+}
+
+TEST_F(ConstantBox, RayGrazingAFace) {
+  // In the plane y = 0 (the box's lower face) and along the edge y = 3, z = 2: L = 10.
+  EXPECT_NEAR(transmittance(lookAt({-5, 0, 0.5}, {20, 0, 0.5})), std::exp(-sigma * 10), 1e-3);
+  EXPECT_NEAR(transmittance(lookAt({-5, 3, 2}, {20, 3, 2})), std::exp(-sigma * 10), 1e-3);
+}
+
+TEST_F(ConstantBox, RaysMissingTheVolume) {
+  // Just above the top face, looking away from the box, and parallel beside it.
+  EXPECT_EQ(transmittance(lookAt({-5, 3.001, 0}, {20, 3.001, 0})), 1.0);
+  EXPECT_EQ(transmittance(lookAt({-5, 1, 0}, {-20, 1, 0})), 1.0);
+  EXPECT_EQ(transmittance(lookAt({5, 1, -2.5}, {5, 1, -20})), 1.0);
+}
+
+TEST_F(ConstantBox, ParallelProjectionGivesBoxThickness) {
+  // Orthographic view along z: every pixel whose ray hits the box sees L = 4.
+  VolumeCamera cam = lookAt({5, 1.5, 10}, {5, 1.5, 0}, 8, 8);
+  cam.parallel = true;
+  cam.parallelScale = 1.0;  // view [4, 6] x [0.5, 2.5], inside the box's x-y extent
+  opt.sampleDistance = 1e-3;
+  const VolumeImage img = renderVolume(vol, geo, tf, cam, opt);
+  for (int p = 0; p < 64; ++p) EXPECT_NEAR(1.0 - img.rgba[4 * p + 3], std::exp(-sigma * 4), 1e-3);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Block-sparse storage against the dense array.
+
+TEST(BlockSparseVolume, SamplingEqualsDenseArray) {
+  const Dense d = blobs(37, 29, 21, 7);
+  const TransferTable tf = rampTable(0, 100, 0.3, 0.5);
+  BlockSparseVolume sparse, full;
+  sparse.build(d.v.data(), d.n, tf);
+  VolumeBuildOptions o;
+  o.sparse = false;
+  full.build(d.v.data(), d.n, tf, o);
+  ASSERT_LT(sparse.stats().blocksAllocated, sparse.stats().blocksDense) << "blobs should leave blocks empty";
+  EXPECT_EQ(full.stats().blocksAllocated, full.stats().blocksDense);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> ux(-0.5, d.n[0] - 0.5), uy(-0.5, d.n[1] - 0.5), uz(-0.5, d.n[2] - 0.5);
+  int present = 0, absent = 0;
+  for (int s = 0; s < 20000; ++s) {
+    const double x = ux(rng), y = uy(rng), z = uz(rng);
+    const double ref = d.sample(x, y, z);
+    double v = -1;
+    ASSERT_TRUE(full.sample(x, y, z, v));
+    EXPECT_NEAR(v, ref, 1e-4);
+    if (sparse.sample(x, y, z, v)) {
+      ++present;
+      EXPECT_NEAR(v, ref, 1e-4);
+    } else {
+      // An absent block may only be read by an invisible cell: opacity 0 on its corner range.
+      ++absent;
+      int c[3];
+      const double q[3] = {x, y, z};
+      for (int a = 0; a < 3; ++a) c[a] = std::min(std::max(int(std::floor(q[a])), 0), d.n[a] - 2);
+      float lo = 1e30f, hi = -1e30f;
+      for (int m = 0; m < 8; ++m) {
+        const float w = d.at(c[0] + (m & 1), c[1] + ((m >> 1) & 1), c[2] + (m >> 2));
+        lo = std::min(lo, w);
+        hi = std::max(hi, w);
+      }
+      EXPECT_EQ(tf.maxOpacity(lo, hi), 0.f);
+      EXPECT_LT(hi, 30.3f) << "a cell that reaches into the ramp was dropped";
+    }
+  }
+  EXPECT_GT(present, 100);
+  EXPECT_GT(absent, 100);
+}
+
+TEST(BlockSparseVolume, MemoryIsTheVisibleBlocksPlusTenPercent) {
+  const Dense d = blobs(64, 64, 64, 3);
+  const TransferTable tf = rampTable(0, 100, 0.3, 0.5);
+  BlockSparseVolume vol;
+  vol.build(d.v.data(), d.n, tf);
+  const VolumeStats& s = vol.stats();
+  EXPECT_GT(s.blocksAllocated, 0u);
+  EXPECT_EQ(s.blockBytes, uint64_t(s.blocksAllocated) * 512 * 4);
+  EXPECT_LE(double(s.bytes), 1.10 * double(s.blockBytes));
+  EXPECT_LT(s.bytes, s.denseBytes / 2);
+  // Every allocated block holds a corner of a visible cell (brute force over the cells).
+  std::vector<uint8_t> need(s.blocksDense, 0);
+  for (int k = 0; k + 1 < d.n[2]; ++k)
+    for (int j = 0; j + 1 < d.n[1]; ++j)
+      for (int i = 0; i + 1 < d.n[0]; ++i) {
+        float lo = 1e30f, hi = -1e30f;
+        for (int m = 0; m < 8; ++m) {
+          const float w = d.at(i + (m & 1), j + ((m >> 1) & 1), k + (m >> 2));
+          lo = std::min(lo, w);
+          hi = std::max(hi, w);
+        }
+        if (tf.maxOpacity(lo, hi) > 0)
+          for (int m = 0; m < 8; ++m)
+            need[vol.voxels().pointerIndex(i + (m & 1), j + ((m >> 1) & 1), k + (m >> 2))] = 1;
+      }
+  uint32_t needed = 0;
+  for (size_t p = 0; p < need.size(); ++p) {
+    needed += need[p];
+    EXPECT_EQ(need[p] != 0, vol.voxels().pointers()[p] != MT_NULL) << "block " << p;
+  }
+  EXPECT_EQ(needed, s.blocksAllocated);
+}
+
+TEST(BlockSparseVolume, TransparentTransferFunctionAllocatesNothing) {
+  const Dense d = blobs(20, 20, 20, 5);
+  BlockSparseVolume vol;
+  vol.build(d.v.data(), d.n, constantTable(0, 100, 0.f));
+  EXPECT_EQ(vol.stats().blocksAllocated, 0u);
+  EXPECT_EQ(vol.stats().bricksVisible, 0u);
+  const VolumeImage img = renderVolume(vol, VolumeGeometry(), constantTable(0, 100, 0.f),
+                                       lookAt({10, 10, -40}, {10, 10, 10}, 16, 16), VolumeRenderOptions());
+  for (float f : img.rgba) EXPECT_EQ(f, 0.f);
+  EXPECT_EQ(img.samples, 0u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Whole renderings: skipping on/off, sparse/dense storage, and an independent brute-force marcher.
+
+namespace {
+
+/// The straightforward marcher: every sample from the dense array, no storage, no skipping.
+std::vector<double> bruteForce(const Dense& d, const VolumeGeometry& g, const TransferTable& tf,
+                               const VolumeCamera& cam, double dt) {
+  std::vector<double> out(size_t(cam.width) * cam.height * 4, 0.0);
+  const Vec3 fwd = normalized(cam.focalPoint - cam.position);
+  const Vec3 right = normalized(cross(fwd, cam.viewUp)), up = cross(right, fwd);
+  const double th = std::tan(cam.viewAngle * M_PI / 360), aspect = double(cam.width) / cam.height;
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const Vec3 dir = normalized(fwd + right * ((2.0 * (x + 0.5) / cam.width - 1) * th * aspect) +
+                                  up * ((2.0 * (y + 0.5) / cam.height - 1) * th));
+      double t0 = 0, t1 = 1e300;
+      for (int a = 0; a < 3; ++a) {
+        const double lo = g.origin[a], hi = g.origin[a] + (d.n[a] - 1) * g.spacing[a];
+        double ta = (std::min(lo, hi) - cam.position[a]) / dir[a], tb = (std::max(lo, hi) - cam.position[a]) / dir[a];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta);
+        t1 = std::min(t1, tb);
+      }
+      double A = 0, C[3] = {0, 0, 0};
+      for (int k = 0; t0 <= t1 && t0 + k * dt <= t1; ++k) {
+        const Vec3 p = cam.position + dir * (t0 + k * dt);
+        const double v = d.sample((p.x - g.origin[0]) / g.spacing[0], (p.y - g.origin[1]) / g.spacing[1],
+                                  (p.z - g.origin[2]) / g.spacing[2]);
+        const float* e = tf.rgba().data() + 4 * tf.index(v);
+        const double a = 1 - std::pow(1 - double(e[3]), dt / tf.unitDistance());
+        for (int ch = 0; ch < 3; ++ch) C[ch] += (1 - A) * e[ch] * a;
+        A += (1 - A) * a;
+      }
+      double* o = out.data() + (size_t(y) * cam.width + x) * 4;
+      o[0] = C[0], o[1] = C[1], o[2] = C[2], o[3] = A;
+    }
+  return out;
+}
+
+}  // namespace
+
+TEST(VolumeRender, EqualsDenseBruteForceMarcher) {
+  const Dense d = blobs(33, 30, 27, 9);
+  const TransferTable tf = rampTable(0, 100, 0.25, 0.6);
+  VolumeGeometry g;
+  g.spacing[0] = 0.9, g.spacing[1] = 1.2, g.spacing[2] = -0.7;  // a negative spacing too
+  g.origin[0] = -3, g.origin[1] = 2, g.origin[2] = 5;
+  BlockSparseVolume vol;
+  vol.build(d.v.data(), d.n, tf);
+  const VolumeCamera cam = lookAt({-20, 40, -30}, {11, 20, -5}, 24, 20);
+  VolumeRenderOptions opt;
+  opt.sampleDistance = 0.5;
+  opt.earlyTermination = 1.0;
+  opt.doublePrecision = true;
+  const VolumeImage img = renderVolume(vol, g, tf, cam, opt);
+  const std::vector<double> ref = bruteForce(d, g, tf, cam, opt.sampleDistance);
+  double m = 0, sumA = 0;
+  for (size_t i = 0; i < ref.size(); ++i) m = std::max(m, std::fabs(ref[i] - img.rgba[i]));
+  for (size_t i = 3; i < ref.size(); i += 4) sumA += ref[i];
+  EXPECT_GT(sumA, 5.0) << "the view should see the blobs";
+  EXPECT_LT(m, 1e-4);
+}
+
+TEST(VolumeRender, SkippingEqualsNoSkippingOnBlobs) {
+  const Dense d = blobs(70, 50, 40, 21);
+  const TransferTable tf = rampTable(0, 100, 0.3, 0.4);
+  BlockSparseVolume vol;
+  vol.build(d.v.data(), d.n, tf);
+  const VolumeCamera cam = lookAt({-30, 70, -50}, {35, 25, 20}, 48, 40);
+  for (int variant = 0; variant < 4; ++variant) {
+    VolumeRenderOptions opt;
+    opt.sampleDistance = 0.37;
+    opt.doublePrecision = variant & 1;
+    opt.shade = variant & 2;
+    opt.earlyTermination = 0.95;
+    VolumeRenderOptions noSkip = opt;
+    noSkip.emptySpaceSkipping = false;
+    const VolumeImage a = renderVolume(vol, VolumeGeometry(), tf, cam, opt);
+    const VolumeImage b = renderVolume(vol, VolumeGeometry(), tf, cam, noSkip);
+    EXPECT_LE(maxDiff(a, b), 1e-6) << "variant " << variant;
+    EXPECT_GT(a.skips, 0u);
+    EXPECT_LT(a.samples, b.samples) << "skipping should classify fewer samples";
+  }
+}
+
+TEST(VolumeRender, SkippingEqualsNoSkippingOnIronProtein) {
+  vtkNew<vtkStructuredPointsReader> r;
+  r->SetFileName((dataDir() + "/volumes/ironProt.vtk").c_str());
+  r->Update();
+  vtkImageData* im = r->GetOutput();
+  ASSERT_NE(im->GetPointData()->GetScalars(), nullptr);
+  int dims[3];
+  im->GetDimensions(dims);
+  vtkDataArray* s = im->GetPointData()->GetScalars();
+  std::vector<float> v(size_t(s->GetNumberOfTuples()));
+  for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i) v[size_t(i)] = float(s->GetTuple1(i));
+  double range[2];
+  s->GetRange(range);
+  const TransferTable tf = rampTable(range[0], range[1], 0.4, 0.3);
+  BlockSparseVolume sparse, full;
+  sparse.build(v.data(), dims, tf);
+  VolumeBuildOptions o;
+  o.sparse = false;
+  full.build(v.data(), dims, tf, o);
+  VolumeGeometry g;
+  im->GetSpacing(g.spacing);
+  im->GetOrigin(g.origin);
+  const VolumeCamera cam = lookAt({-60, 100, -80}, {34, 34, 34}, 40, 40);
+  VolumeRenderOptions opt;
+  opt.sampleDistance = 0.5;
+  VolumeRenderOptions noSkip = opt;
+  noSkip.emptySpaceSkipping = false;
+  const VolumeImage a = renderVolume(sparse, g, tf, cam, opt);
+  const VolumeImage b = renderVolume(sparse, g, tf, cam, noSkip);
+  const VolumeImage c = renderVolume(full, g, tf, cam, noSkip);
+  EXPECT_LE(maxDiff(a, b), 1e-6);
+  EXPECT_LE(maxDiff(a, c), 1e-6) << "absent blocks must not change the picture";
+  double sumA = 0;
+  for (size_t i = 3; i < a.rgba.size(); i += 4) sumA += a.rgba[i];
+  EXPECT_GT(sumA, 10.0);
+  EXPECT_LT(sparse.stats().blocksAllocated, sparse.stats().blocksDense);
+}
+
+TEST(VolumeRender, ImageSampleDistanceInterpolatesACoarseImage) {
+  const Dense d = blobs(30, 30, 30, 2);
+  const TransferTable tf = rampTable(0, 100, 0.3, 0.5);
+  BlockSparseVolume vol;
+  vol.build(d.v.data(), d.n, tf);
+  VolumeRenderOptions opt;
+  const VolumeCamera cam = lookAt({15, 15, -60}, {15, 15, 15}, 64, 64);
+  const VolumeImage full = renderVolume(vol, VolumeGeometry(), tf, cam, opt);
+  opt.imageSampleDistance = 2;
+  const VolumeImage half = renderVolume(vol, VolumeGeometry(), tf, cam, opt);
+  EXPECT_EQ(half.rays, 32u * 32u);
+  EXPECT_EQ(half.rgba.size(), full.rgba.size());
+  double err = 0, sum = 0;
+  for (size_t i = 0; i < full.rgba.size(); ++i) {
+    err += std::fabs(full.rgba[i] - half.rgba[i]);
+    sum += full.rgba[i];
+  }
+  EXPECT_GT(sum, 1.0);
+  EXPECT_LT(err / sum, 0.25);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bad input: a clear exception, never a crash.
+
+TEST(VolumeEdgeCases, BadInputIsRejectedClearly) {
+  BlockSparseVolume vol;
+  const TransferTable tf = constantTable(0, 1, 0.5f);
+  std::vector<float> v(100, 1.f);
+  const int thin[3] = {10, 10, 1};
+  EXPECT_THROW(vol.build(v.data(), thin, tf), std::invalid_argument);
+  const int zero[3] = {0, 0, 0};
+  EXPECT_THROW(vol.build(v.data(), zero, tf), std::invalid_argument);
+  const int ok[3] = {5, 5, 4};
+  EXPECT_THROW(vol.build(static_cast<const float*>(nullptr), ok, tf), std::invalid_argument);
+  std::vector<float> nan(100, std::nanf(""));
+  EXPECT_THROW(vol.build(nan.data(), ok, tf), std::invalid_argument);
+  EXPECT_THROW(TransferTable(1, 1, std::vector<float>(8, 0.f)), std::invalid_argument);
+  EXPECT_THROW(TransferTable(0, 1, std::vector<float>(3, 0.f)), std::invalid_argument);
+  EXPECT_THROW(renderVolume(vol, VolumeGeometry(), tf, VolumeCamera(), VolumeRenderOptions()), std::invalid_argument)
+      << "rendering an unbuilt volume";
+
+  vol.build(v.data(), ok, tf);
+  VolumeGeometry g;
+  g.spacing[1] = 0;
+  EXPECT_THROW(renderVolume(vol, g, tf, VolumeCamera(), VolumeRenderOptions()), std::invalid_argument);
+  VolumeRenderOptions bad;
+  bad.sampleDistance = 0;
+  EXPECT_THROW(renderVolume(vol, VolumeGeometry(), tf, VolumeCamera(), bad), std::invalid_argument);
+  VolumeCamera same;
+  same.focalPoint = same.position;
+  EXPECT_THROW(renderVolume(vol, VolumeGeometry(), tf, same, VolumeRenderOptions()), std::invalid_argument);
+}
+
+TEST(VolumeEdgeCases, NonFiniteScalarsBecomeTheLowestFiniteValue) {
+  std::vector<float> v(4 * 4 * 4, 5.f);
+  v[10] = std::nanf("");
+  v[20] = std::numeric_limits<float>::infinity();
+  v[30] = 2.f;
+  const int dims[3] = {4, 4, 4};
+  BlockSparseVolume vol;
+  vol.build(v.data(), dims, constantTable(0, 10, 0.5f));
+  EXPECT_EQ(vol.stats().nonFinite, 2u);
+  EXPECT_EQ(vol.minValue(), 2.f);
+  EXPECT_EQ(vol.maxValue(), 5.f);
+  EXPECT_EQ(vol.voxels().get(2, 2, 0), 2.f);  // index 10 = (2, 2, 0)
+  const VolumeImage img = renderVolume(vol, VolumeGeometry(), constantTable(0, 10, 0.5f),
+                                       lookAt({1.5, 1.5, -10}, {1.5, 1.5, 1.5}, 8, 8), VolumeRenderOptions());
+  for (float f : img.rgba) EXPECT_TRUE(std::isfinite(f));
+}
+
+TEST(VolumeEdgeCases, IntegerScalarsAndTwoVoxelAxes) {
+  std::vector<int16_t> v(2 * 3 * 2, 300);
+  const int dims[3] = {2, 3, 2};
+  BlockSparseVolume vol;
+  vol.build(v.data(), dims, constantTable(0, 1000, 0.2f));
+  EXPECT_EQ(vol.stats().cells, 2u);
+  double s = 0;
+  ASSERT_TRUE(vol.sample(0.5, 1.5, 0.5, s));
+  EXPECT_EQ(s, 300.0);
+}
