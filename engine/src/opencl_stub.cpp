@@ -1,0 +1,59 @@
+// The OpenCL back end's entry points when the engine is built without an OpenCL SDK: each one
+// throws mtree::ocl::Error saying so (never a crash, never a silent CPU fallback).
+#ifndef MATRIXTREE_HAVE_OPENCL
+
+#include "mtree/opencl.h"
+
+namespace mtree {
+namespace ocl {
+namespace {
+[[noreturn]] void unavailable() {
+  throw Error("OpenCL: this MatrixTree was built without OpenCL (no OpenCL SDK found by CMake, or "
+              "-DMATRIXTREE_OPENCL=OFF); install ocl-icd-opencl-dev and opencl-headers and rebuild");
+}
+}  // namespace
+
+struct Context::Impl {};
+struct Builder::State {};
+struct Tracer::State {};
+
+bool compiledWithOpenCL() { return false; }
+std::vector<DeviceInfo> listDevices(std::string* why) {
+  if (why) *why = "built without OpenCL";
+  return {};
+}
+Context::Context(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Context::~Context() = default;
+std::shared_ptr<Context> Context::create(const std::string&) { unavailable(); }
+std::shared_ptr<Context> Context::shared(const std::string&) { unavailable(); }
+const DeviceInfo& Context::device() const { unavailable(); }
+std::string Context::deviceLabel() const { unavailable(); }
+
+Builder::Builder(std::shared_ptr<Context>) { unavailable(); }
+Builder::~Builder() = default;
+void Builder::build(const TriangleMesh&, const BuildOptions&, MatrixTree&, BuildStats*, std::vector<KernelTiming>*) {
+  unavailable();
+}
+void Builder::keepDevicePointers(bool) { unavailable(); }
+const std::vector<std::vector<uint32_t>>& Builder::devicePointers() const { unavailable(); }
+Context& Builder::context() const { unavailable(); }
+
+Tracer::Tracer(std::shared_ptr<Context>) { unavailable(); }
+Tracer::~Tracer() = default;
+void Tracer::upload(const MatrixTree&, const TriangleMesh&) { unavailable(); }
+bool Tracer::uploaded() const { return false; }
+void Tracer::intersectFirst(const double*, const double*, size_t, double, double, double*, uint32_t*, uint64_t*,
+                            uint64_t*, std::vector<KernelTiming>*) {
+  unavailable();
+}
+void Tracer::intersectAny(const double*, const double*, size_t, double, double, uint8_t*, uint64_t*, uint64_t*,
+                          std::vector<KernelTiming>*) {
+  unavailable();
+}
+void Tracer::findLeaves(const double*, size_t, int32_t*, std::vector<KernelTiming>*) { unavailable(); }
+Context& Tracer::context() const { unavailable(); }
+
+}  // namespace ocl
+}  // namespace mtree
+
+#endif  // !MATRIXTREE_HAVE_OPENCL
