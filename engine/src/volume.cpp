@@ -165,7 +165,11 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
 namespace {
 
 inline int clampCell(double q, int n, double& f) {
-  int c = static_cast<int>(std::floor(q));
+  // floor without a libm call (no SSE4.1 round instruction in baseline x86-64); q is clamped
+  // first so the conversion cannot overflow.
+  const double qc = std::min(std::max(q, -1.0), double(n));
+  int c = static_cast<int>(qc);
+  c -= (qc < c);
   c = std::min(std::max(c, 0), n - 2);
   f = std::min(1.0, std::max(0.0, q - c));
   return c;
@@ -193,6 +197,43 @@ bool BlockSparseVolume::sample(double x, double y, double z, double& v) const {
 // --------------------------------------------------------------------------------- renderVolume
 
 namespace {
+
+/// The block-sparse matrix's addressing, unpacked once per frame for the inner loop.
+struct BlockAddress {
+  const uint32_t* ptr;
+  const float* data;
+  int lb0, lb1, lb2, m0, m1, m2, pd0, pd1;
+  uint32_t bv;
+  explicit BlockAddress(const BlockSparseMatrix<float>& m)
+      : ptr(m.pointers().data()), data(m.data().data()), lb0(m.desc().logBlock[0]), lb1(m.desc().logBlock[1]),
+        lb2(m.desc().logBlock[2]), m0((1 << lb0) - 1), m1((1 << lb1) - 1), m2((1 << lb2) - 1),
+        pd0(m.desc().ptrDims[0]), pd1(m.desc().ptrDims[1]), bv(m.desc().blockVolume) {}
+  /// BlockSparseVolume::cellCorners, with the 8 corners addressed per axis.
+  bool corners(int i, int j, int k, float c[8]) const {
+    const int bx0 = i >> lb0, by0 = j >> lb1, bz0 = k >> lb2;
+    const int bx1 = (i + 1) >> lb0, by1 = (j + 1) >> lb1, bz1 = (k + 1) >> lb2;
+    const int lx0 = i & m0, ly0 = j & m1, lz0 = k & m2;
+    if (((bx0 ^ bx1) | (by0 ^ by1) | (bz0 ^ bz1)) == 0) {
+      const uint32_t b = ptr[(size_t(bz0) * pd1 + by0) * pd0 + bx0];
+      if (b == MT_NULL) return false;
+      const float* p = data + size_t(b) * bv + ((lz0 << (lb0 + lb1)) | (ly0 << lb0) | lx0);
+      const int sy = 1 << lb0, sz = 1 << (lb0 + lb1);
+      c[0] = p[0]; c[1] = p[1]; c[2] = p[sy]; c[3] = p[sy + 1];
+      c[4] = p[sz]; c[5] = p[sz + 1]; c[6] = p[sz + sy]; c[7] = p[sz + sy + 1];
+      return true;
+    }
+    const int bx[2] = {bx0, bx1}, by[2] = {by0, by1}, bz[2] = {bz0, bz1};
+    const int lx[2] = {lx0, (i + 1) & m0}, ly[2] = {ly0 << lb0, ((j + 1) & m1) << lb0},
+              lz[2] = {lz0 << (lb0 + lb1), ((k + 1) & m2) << (lb0 + lb1)};
+    for (int n = 0; n < 8; ++n) {
+      const int dx = n & 1, dy = (n >> 1) & 1, dz = n >> 2;
+      const uint32_t b = ptr[(size_t(bz[dz]) * pd1 + by[dy]) * pd0 + bx[dx]];
+      if (b == MT_NULL) return false;
+      c[n] = data[size_t(b) * bv + (lz[dz] | ly[dy] | lx[dx])];
+    }
+    return true;
+  }
+};
 
 struct MarchContext {
   const BlockSparseVolume* vol;
@@ -222,8 +263,10 @@ inline double exitT(const Ray& r, const double lo[3], const double hi[3]) {
 /// Marches one ray over samples k = 0..kEnd at t_k = t0 + k dt. Returns premultiplied RGBA.
 template <typename R, bool Skip, bool Shade>
 void march(const MarchContext& c, const Ray& ray, double t0, int64_t kEnd, const double viewDir[3], float out[4],
-           uint64_t& samples, uint64_t& skips) {
+           uint64_t& samplesOut, uint64_t& skipsOut) {
+  uint64_t samples = 0, skips = 0;  // locals: a counter behind a reference is stored every sample
   const BlockSparseVolume& vol = *c.vol;
+  const BlockAddress addr(vol.voxels());
   R A = 0, Cr = 0, Cg = 0, Cb = 0;
   const R thr = static_cast<R>(c.threshold);
   int64_t k = 0;
@@ -268,7 +311,7 @@ void march(const MarchContext& c, const Ray& ray, double t0, int64_t kEnd, const
       const int cj = clampCell(ray.o[1] + ray.d[1] * t, c.n[1], fy);
       const int ck = clampCell(ray.o[2] + ray.d[2] * t, c.n[2], fz);
       float cc[8];
-      if (!vol.cellCorners(ci, cj, ck, cc)) continue;
+      if (!addr.corners(ci, cj, ck, cc)) continue;
       ++samples;
       const R v = trilinear<R>(cc, R(fx), R(fy), R(fz));
       const float* e = c.table + 4 * c.tf->index(v);
@@ -306,6 +349,8 @@ void march(const MarchContext& c, const Ray& ray, double t0, int64_t kEnd, const
       }
     }
   }
+  samplesOut += samples;
+  skipsOut += skips;
   out[0] = float(Cr);
   out[1] = float(Cg);
   out[2] = float(Cb);

@@ -19,6 +19,7 @@ from matrixtree_vtk import vtkMatrixTreeVersion
 from matrixtree import scenes
 from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb
 from matrixtree.grids import read_grid
+from matrixtree.volume import default_transfer_functions, frame_camera, read_volume, render_volume
 
 __version__ = vtkMatrixTreeVersion.GetVersion()
 
