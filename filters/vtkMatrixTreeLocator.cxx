@@ -21,8 +21,13 @@
 #include "mtree/builder.h"
 #include "mtree/cells.h"
 
+#include <omp.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <sstream>
+#include <string>
 #include <limits>
 #include <queue>
 #include <unordered_set>
@@ -33,8 +38,14 @@ struct vtkMatrixTreeLocatorInternals
   mtree::CellSet Cells;
   mtree::MatrixTree Tree;
   mtree::BuildStats Stats;
-  std::vector<double> CellBounds; // 6 per cell: xmin xmax ymin ymax zmin zmax
   double MaxCellExtent[3] = { 0, 0, 0 }; // largest cell bounding-box extent per axis
+  // Per reference (same order as the tree's primitive indices): the cell's bounds, padded by
+  // 1e-3 of its largest extent, clipped to the leaf and quantized outwards to 1/255 of the
+  // leaf (xlo xhi ylo yhi zlo zhi). Point location scans these sequentially instead of
+  // fetching every candidate's bounds from a random place: 6 bytes per reference.
+  std::vector<uint8_t> LeafBoxes;
+  vtkDataSet* BuiltOn = nullptr; // the data set of the last build (compared, never dereferenced)
+  std::string Phases; // "name ms; ..." of the last build, conversion and tree phases
   bool Valid = false;
 };
 
@@ -54,7 +65,7 @@ inline double BoxDistance2(const double x[3], const mtree::Box& b)
   return d2;
 }
 
-inline double BoundsDistance2(const double x[3], const double* b)
+inline double BoundsDistance2(const double x[3], const float* b)
 {
   double d2 = 0;
   for (int a = 0; a < 3; ++a)
@@ -84,6 +95,70 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
           f(cc);
         }
       }
+}
+
+// The padding of the point-location bounds pre-test: EvaluatePosition accepts points a little
+// outside in parametric space, so the bounds must not reject them.
+inline double LocatePad(const float* b)
+{
+  return 1e-3 * std::max({ double(b[1]) - b[0], double(b[3]) - b[2], double(b[5]) - b[4] });
+}
+
+void ComputeLeafBoxes(vtkMatrixTreeLocatorInternals& in, int threads)
+{
+  const mtree::MatrixTree& tree = in.Tree;
+  const std::vector<uint32_t>& prims = tree.primitiveIndices();
+  in.LeafBoxes.resize(prims.size() * 6);
+  if (tree.empty())
+  {
+    return;
+  }
+  const int H = tree.height();
+  const auto& m = tree.leafLevel();
+  const int64_t ne = static_cast<int64_t>(m.data().size());
+  const int nt = threads > 0 ? threads : omp_get_max_threads();
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 256)
+  for (int64_t e = 0; e < ne; ++e)
+  {
+    const MtLeafRange r = m.data()[static_cast<size_t>(e)];
+    if (r.begin == MT_NULL)
+    {
+      continue;
+    }
+    int c[3];
+    m.entryCoords(static_cast<uint32_t>(e), c);
+    const mtree::Box lb = tree.nodeBox(H, c);
+    double scale[3];
+    for (int a = 0; a < 3; ++a)
+    {
+      scale[a] = 255.0 / (lb.hi[a] - lb.lo[a]);
+    }
+    for (uint32_t k = r.begin; k < r.end; ++k)
+    {
+      // The cells of a leaf are scattered over the cell array: fetch ahead, or every reference
+      // waits for a cache miss.
+      if (k + 16 < r.end)
+      {
+        __builtin_prefetch(in.Cells.cellBox(prims[k + 16]));
+      }
+      const float* b = in.Cells.cellBox(prims[k]);
+      const double pad = LocatePad(b);
+      uint8_t* q = &in.LeafBoxes[6 * static_cast<size_t>(k)];
+      for (int a = 0; a < 3; ++a)
+      {
+        const double lo = std::floor((b[2 * a] - pad - lb.lo[a]) * scale[a]);
+        const double hi = std::ceil((b[2 * a + 1] + pad - lb.lo[a]) * scale[a]);
+        // Clamped into [0, 255]; a NaN (empty cell) keeps the full range: the exact test decides.
+        q[2 * a] = static_cast<uint8_t>(lo > 0 ? (lo < 255 ? lo : 255) : 0);
+        q[2 * a + 1] = static_cast<uint8_t>(hi < 255 ? (hi > 0 ? hi : 0) : 255);
+        if (!(lo <= hi))
+        {
+          q[2 * a] = 0;
+          q[2 * a + 1] = 255;
+        }
+      }
+    }
+  }
 }
 }
 
@@ -116,12 +191,20 @@ bool vtkMatrixTreeLocator::NeedsBuild()
 
 bool vtkMatrixTreeLocator::EnsureBuilt()
 {
+  // Queries build lazily and rebuild when the data set object or a setting changed, but do not
+  // walk the data set's modification times (its arrays') on every query: as with VTK's own
+  // locators, call BuildLocator() after changing the data set in place.
+  if (this->Internals->Valid && this->Internals->BuiltOn == this->DataSet &&
+    (this->UseExistingSearchStructure || this->BuildTime >= this->MTime))
+  {
+    return true;
+  }
   if (!this->DataSet)
   {
     vtkErrorMacro("No data set: call SetDataSet() first.");
     return false;
   }
-  if (this->NeedsBuild())
+  if (this->NeedsBuild() || this->Internals->BuiltOn != this->DataSet)
   {
     this->ForceBuildLocator();
   }
@@ -141,6 +224,11 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
 {
   vtkMatrixTreeLocatorInternals& in = *this->Internals;
   in.Valid = false;
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point tStart = Clock::now();
+  auto msSince = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
   vtkDataSet* ds = this->DataSet;
   if (!ds)
   {
@@ -173,7 +261,12 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
       ds->GetPoint(i, &pts[3 * i]);
     }
   }
-  std::vector<int64_t> offsets(static_cast<size_t>(nc) + 1, 0), conn;
+  if (np >= 0xffffffffLL)
+  {
+    vtkErrorMacro("BuildLocator: more than 2^32 - 1 points are not supported.");
+    return;
+  }
+  std::vector<uint32_t> offsets(static_cast<size_t>(nc) + 1, 0), conn;
   std::vector<uint8_t> types(static_cast<size_t>(nc));
   vtkUnstructuredGrid* ug = vtkUnstructuredGrid::SafeDownCast(ds);
   vtkCellArray* ca = ug ? ug->GetCells() : nullptr;
@@ -183,15 +276,27 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     // more than the whole tree build).
     const unsigned char* t = ug->GetCellTypesArray()->GetPointer(0);
     std::copy(t, t + nc, types.begin());
+    bool fits = true;
     auto copyArrays = [&](auto* off, auto* cn) {
+      const auto* o = off->GetPointer(0);
+      const auto* cc = cn->GetPointer(0);
+      const vtkIdType m = cn->GetNumberOfValues();
+      if (m >= 0xffffffffLL)
+      {
+        fits = false;
+        return;
+      }
+      conn.resize(static_cast<size_t>(m));
+      // Negative or too large values are caught by the CellSet's range check (as 2^32 - 1).
+#pragma omp parallel for schedule(static) if (m > 65536)
+      for (vtkIdType k = 0; k < m; ++k)
+      {
+        conn[k] = (cc[k] < 0 || static_cast<long long>(cc[k]) >= np) ? 0xffffffffu : static_cast<uint32_t>(cc[k]);
+      }
+#pragma omp parallel for schedule(static) if (nc > 65536)
       for (vtkIdType c = 0; c <= nc; ++c)
       {
-        offsets[c] = static_cast<int64_t>(off->GetValue(c));
-      }
-      conn.resize(static_cast<size_t>(cn->GetNumberOfValues()));
-      for (size_t k = 0; k < conn.size(); ++k)
-      {
-        conn[k] = static_cast<int64_t>(cn->GetValue(static_cast<vtkIdType>(k)));
+        offsets[c] = static_cast<uint32_t>(o[c]);
       }
     };
     if (ca->IsStorage64Bit())
@@ -201,6 +306,11 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     else
     {
       copyArrays(ca->GetOffsetsArray32(), ca->GetConnectivityArray32());
+    }
+    if (!fits)
+    {
+      vtkErrorMacro("BuildLocator: more than 2^32 - 1 connectivity entries are not supported.");
+      return;
     }
   }
   else
@@ -213,11 +323,17 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
       ds->GetCellPoints(c, ids);
       for (vtkIdType k = 0; k < ids->GetNumberOfIds(); ++k)
       {
-        conn.push_back(ids->GetId(k));
+        conn.push_back(static_cast<uint32_t>(ids->GetId(k)));
       }
-      offsets[c + 1] = static_cast<int64_t>(conn.size());
+      if (conn.size() >= 0xffffffffu)
+      {
+        vtkErrorMacro("BuildLocator: more than 2^32 - 1 connectivity entries are not supported.");
+        return;
+      }
+      offsets[c + 1] = static_cast<uint32_t>(conn.size());
     }
   }
+  const double convertMs = msSince(tStart);
   double progress = 0.2; // a locator is no algorithm: progress goes out as an event
   this->InvokeEvent(vtkCommand::ProgressEvent, &progress);
   mtree::BuildOptions opt;
@@ -228,9 +344,13 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
   opt.maxCandidates = this->MaxCandidates;
   opt.threads = this->NumberOfThreads;
+  double convertMs2 = 0;
   try
   {
-    in.Cells = mtree::CellSet(std::move(pts), std::move(offsets), std::move(conn), std::move(types));
+    in.Cells = mtree::CellSet(
+      std::move(pts), std::move(offsets), std::move(conn), std::move(types), this->NumberOfThreads);
+    in.Cells.setAxes(this->FullSeparatingAxes ? mtree::CellAxes::All : mtree::CellAxes::Faces);
+    convertMs2 = msSince(tStart) - convertMs;
     mtree::MatrixTreeBuilder<mtree::CellSet>::build(in.Cells, opt, in.Tree, &in.Stats);
   }
   catch (const std::exception& e)
@@ -238,18 +358,25 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     vtkErrorMacro("BuildLocator failed: " << e.what());
     return;
   }
-  in.CellBounds.resize(static_cast<size_t>(nc) * 6);
-  std::fill(in.MaxCellExtent, in.MaxCellExtent + 3, 0.0);
-  for (vtkIdType c = 0; c < nc; ++c)
+  const Clock::time_point tBounds = Clock::now();
+  ComputeLeafBoxes(in, this->NumberOfThreads);
   {
-    const mtree::Box bb = in.Cells.bounds(c);
-    for (int a = 0; a < 3; ++a)
-    {
-      in.CellBounds[6 * c + 2 * a] = bb.lo[a];
-      in.CellBounds[6 * c + 2 * a + 1] = bb.hi[a];
-      in.MaxCellExtent[a] = std::max(in.MaxCellExtent[a], bb.hi[a] - bb.lo[a]);
-    }
+    const mtree::Vec3 m = in.Cells.maxExtent();
+    in.MaxCellExtent[0] = m.x;
+    in.MaxCellExtent[1] = m.y;
+    in.MaxCellExtent[2] = m.z;
   }
+  {
+    std::ostringstream os;
+    os << "convert " << convertMs << "; cellset " << convertMs2;
+    for (const auto& ph : in.Stats.phasesMs)
+    {
+      os << "; " << ph.first << " " << ph.second;
+    }
+    os << "; leafboxes " << msSince(tBounds) << "; total " << msSince(tStart);
+    in.Phases = os.str();
+  }
+  in.BuiltOn = ds;
   in.Valid = true;
   this->BuildTime.Modified();
   progress = 1.0;
@@ -269,8 +396,7 @@ bool vtkMatrixTreeLocator::InsideCellBounds(double x[3], vtkIdType cellId)
   {
     return false;
   }
-  const double* b = &this->Internals->CellBounds[6 * cellId];
-  return x[0] >= b[0] && x[0] <= b[1] && x[1] >= b[2] && x[1] <= b[3] && x[2] >= b[4] && x[2] <= b[5];
+  return this->Internals->Cells.exactBounds(static_cast<size_t>(cellId)).contains(mtree::Vec3(x));
 }
 
 //------------------------------------------------------------------------------
@@ -290,19 +416,25 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
   }
   const MtLeafRange r = in.Tree.leafRange(n);
   const uint32_t* ids = in.Tree.primitiveIndices().data();
+  const uint8_t* boxes = in.LeafBoxes.data();
+  // The point in the leaf's quantized frame (the same arithmetic as the boxes': monotone, so
+  // a point inside the padded bounds is never rejected). Clamped into the leaf: round-off of
+  // the leaf search may put a point a hair outside it, where only clipped boxes reach.
+  const mtree::Box lb = in.Tree.nodeBox(n.level, n.c);
+  double q[3];
+  for (int a = 0; a < 3; ++a)
+  {
+    q[a] = std::min(255.0, std::max(0.0, (x[a] - lb.lo[a]) * (255.0 / (lb.hi[a] - lb.lo[a]))));
+  }
   double closest[3], dist2;
   for (uint32_t k = r.begin; k < r.end; ++k)
   {
-    const vtkIdType id = ids[k];
-    // Cell bounds first, padded by 1e-3 of the cell's size: EvaluatePosition accepts points a
-    // little outside in parametric space, and the bounds test must not reject them.
-    const double* b = &in.CellBounds[6 * id];
-    const double pad = 1e-3 * std::max({ b[1] - b[0], b[3] - b[2], b[5] - b[4] });
-    if (x[0] < b[0] - pad || x[0] > b[1] + pad || x[1] < b[2] - pad || x[1] > b[3] + pad ||
-      x[2] < b[4] - pad || x[2] > b[5] + pad)
+    const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+    if (q[0] < qb[0] || q[0] > qb[1] || q[1] < qb[2] || q[1] > qb[3] || q[2] < qb[4] || q[2] > qb[5])
     {
       continue;
     }
+    const vtkIdType id = ids[k];
     if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
     {
       continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
@@ -356,7 +488,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         }
         slot = id;
         // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
-        const double* cb = &in.CellBounds[6 * id];
+        const float* cb = in.Cells.cellBox(id);
         mtree::Box box;
         box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
         box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
@@ -507,7 +639,7 @@ vtkIdType vtkMatrixTreeLocator::FindClosestPointWithinRadius(double x[3], double
       for (uint32_t k = r.begin; k < r.end; ++k)
       {
         const vtkIdType id = tree.primitiveIndices()[k];
-        if (BoundsDistance2(x, &in.CellBounds[6 * id]) > best || !tested.insert(id).second)
+        if (BoundsDistance2(x, in.Cells.cellBox(id)) > best || !tested.insert(id).second)
         {
           continue;
         }
@@ -610,11 +742,15 @@ void vtkMatrixTreeLocator::FindCellsWithinBounds(double* bbox, vtkIdList* cells)
   }
   std::sort(found.begin(), found.end());
   found.erase(std::unique(found.begin(), found.end()), found.end());
+  mtree::Box query;
+  query.lo = mtree::Vec3(bbox[0], bbox[2], bbox[4]);
+  query.hi = mtree::Vec3(bbox[1], bbox[3], bbox[5]);
   for (vtkIdType id : found)
   {
-    const double* b = &in.CellBounds[6 * id];
+    // The cached float bounds contain the exact ones: a miss is final, a hit is checked exactly.
+    const float* b = in.Cells.cellBox(id);
     if (b[0] <= bbox[1] && b[1] >= bbox[0] && b[2] <= bbox[3] && b[3] >= bbox[2] && b[4] <= bbox[5] &&
-      b[5] >= bbox[4])
+      b[5] >= bbox[4] && in.Cells.exactBounds(static_cast<size_t>(id)).overlaps(query))
     {
       cells->InsertNextId(id);
     }
@@ -875,6 +1011,228 @@ vtkIdType vtkMatrixTreeLocator::GenerateNodes(int minLevel, int maxLevel, vtkUns
 }
 
 //------------------------------------------------------------------------------
+namespace
+{
+// The data set's cells made safe to fetch from many threads (polydata builds its cell links
+// on the first GetCell).
+void PrepareForThreads(vtkDataSet* ds)
+{
+  if (ds && ds->GetNumberOfCells() > 0)
+  {
+    vtkNew<vtkGenericCell> c;
+    ds->GetCell(0, c);
+  }
+}
+
+bool CheckTriples(vtkObject* self, vtkDataArray* a, const char* what)
+{
+  if (!a || a->GetNumberOfComponents() != 3)
+  {
+    vtkErrorWithObjectMacro(self, << what << " must be a 3-component array.");
+    return false;
+  }
+  return true;
+}
+
+int ThreadCount(int requested)
+{
+  return requested > 0 ? requested : omp_get_max_threads();
+}
+}
+
+void vtkMatrixTreeLocator::FindCells(
+  vtkPoints* points, vtkIdTypeArray* cellIds, vtkDoubleArray* pcoords, vtkDoubleArray* weights)
+{
+  if (!cellIds)
+  {
+    vtkErrorMacro("FindCells: cellIds must not be null.");
+    return;
+  }
+  cellIds->SetNumberOfComponents(1);
+  cellIds->SetNumberOfTuples(0);
+  if (!points || !CheckTriples(this, points->GetData(), "FindCells: points") || !this->EnsureBuilt())
+  {
+    return;
+  }
+  const vtkIdType n = points->GetNumberOfPoints();
+  const int nw = std::max(1, this->DataSet->GetMaxCellSize());
+  cellIds->SetNumberOfTuples(n);
+  if (pcoords)
+  {
+    pcoords->SetNumberOfComponents(3);
+    pcoords->SetNumberOfTuples(n);
+  }
+  if (weights)
+  {
+    weights->SetNumberOfComponents(nw);
+    weights->SetNumberOfTuples(n);
+  }
+  PrepareForThreads(this->DataSet);
+  vtkIdType* ids = cellIds->GetPointer(0);
+  double* pc = pcoords ? pcoords->GetPointer(0) : nullptr;
+  double* w = weights ? weights->GetPointer(0) : nullptr;
+#pragma omp parallel num_threads(ThreadCount(this->NumberOfThreads))
+  {
+    vtkNew<vtkGenericCell> cell;
+    std::vector<double> wk(static_cast<size_t>(nw));
+    double x[3], p[3];
+#pragma omp for schedule(dynamic, 1024)
+    for (vtkIdType i = 0; i < n; ++i)
+    {
+      points->GetPoint(i, x);
+      std::fill(wk.begin(), wk.end(), 0.0);
+      p[0] = p[1] = p[2] = 0.0;
+      ids[i] = this->FindCell(x, 0.0, cell, p, wk.data());
+      if (pc)
+      {
+        std::copy(p, p + 3, pc + 3 * i);
+      }
+      if (w)
+      {
+        if (ids[i] < 0)
+        {
+          std::fill(wk.begin(), wk.end(), 0.0);
+        }
+        else
+        {
+          // Only the found cell's weights are meaningful; zero the rest.
+          std::fill(wk.begin() + std::min<vtkIdType>(nw, cell->GetNumberOfPoints()), wk.end(), 0.0);
+        }
+        std::copy(wk.begin(), wk.end(), w + static_cast<size_t>(nw) * i);
+      }
+    }
+  }
+}
+
+void vtkMatrixTreeLocator::IntersectSegments(vtkDataArray* p1, vtkDataArray* p2, double tol,
+  vtkDoubleArray* t, vtkIdTypeArray* cellIds, vtkDoubleArray* points)
+{
+  if (!t || !cellIds)
+  {
+    vtkErrorMacro("IntersectSegments: t and cellIds must not be null.");
+    return;
+  }
+  t->SetNumberOfComponents(1);
+  t->SetNumberOfTuples(0);
+  cellIds->SetNumberOfComponents(1);
+  cellIds->SetNumberOfTuples(0);
+  if (points)
+  {
+    points->SetNumberOfComponents(3);
+    points->SetNumberOfTuples(0);
+  }
+  if (!CheckTriples(this, p1, "IntersectSegments: p1") || !CheckTriples(this, p2, "IntersectSegments: p2"))
+  {
+    return;
+  }
+  if (p1->GetNumberOfTuples() != p2->GetNumberOfTuples())
+  {
+    vtkErrorMacro("IntersectSegments: p1 has " << p1->GetNumberOfTuples() << " tuples, p2 "
+                                               << p2->GetNumberOfTuples() << ".");
+    return;
+  }
+  if (!this->EnsureBuilt())
+  {
+    return;
+  }
+  const vtkIdType n = p1->GetNumberOfTuples();
+  t->SetNumberOfTuples(n);
+  cellIds->SetNumberOfTuples(n);
+  if (points)
+  {
+    points->SetNumberOfTuples(n);
+  }
+  PrepareForThreads(this->DataSet);
+  double* tt = t->GetPointer(0);
+  vtkIdType* ids = cellIds->GetPointer(0);
+  double* xp = points ? points->GetPointer(0) : nullptr;
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+#pragma omp parallel num_threads(ThreadCount(this->NumberOfThreads))
+  {
+    vtkNew<vtkGenericCell> cell;
+    double a[3], b[3], x[3], pc[3], ti;
+    int sub;
+    vtkIdType id;
+#pragma omp for schedule(dynamic, 256)
+    for (vtkIdType i = 0; i < n; ++i)
+    {
+      p1->GetTuple(i, a);
+      p2->GetTuple(i, b);
+      const int hit = this->IntersectWithLine(a, b, tol, ti, x, pc, sub, id, cell);
+      ids[i] = hit ? id : -1;
+      tt[i] = hit ? ti : inf;
+      if (xp)
+      {
+        for (int k = 0; k < 3; ++k)
+        {
+          xp[3 * i + k] = hit ? x[k] : nan;
+        }
+      }
+    }
+  }
+}
+
+void vtkMatrixTreeLocator::FindClosestPoints(
+  vtkPoints* points, vtkDoubleArray* closestPoints, vtkIdTypeArray* cellIds, vtkDoubleArray* dist2)
+{
+  if (!closestPoints || !cellIds)
+  {
+    vtkErrorMacro("FindClosestPoints: closestPoints and cellIds must not be null.");
+    return;
+  }
+  closestPoints->SetNumberOfComponents(3);
+  closestPoints->SetNumberOfTuples(0);
+  cellIds->SetNumberOfComponents(1);
+  cellIds->SetNumberOfTuples(0);
+  if (dist2)
+  {
+    dist2->SetNumberOfComponents(1);
+    dist2->SetNumberOfTuples(0);
+  }
+  if (!points || !CheckTriples(this, points->GetData(), "FindClosestPoints: points") ||
+    !this->EnsureBuilt())
+  {
+    return;
+  }
+  const vtkIdType n = points->GetNumberOfPoints();
+  closestPoints->SetNumberOfTuples(n);
+  cellIds->SetNumberOfTuples(n);
+  if (dist2)
+  {
+    dist2->SetNumberOfTuples(n);
+  }
+  PrepareForThreads(this->DataSet);
+  double* cp = closestPoints->GetPointer(0);
+  vtkIdType* ids = cellIds->GetPointer(0);
+  double* d2 = dist2 ? dist2->GetPointer(0) : nullptr;
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+#pragma omp parallel num_threads(ThreadCount(this->NumberOfThreads))
+  {
+    vtkNew<vtkGenericCell> cell;
+    double x[3], c[3], d;
+    int sub;
+    vtkIdType id;
+#pragma omp for schedule(dynamic, 256)
+    for (vtkIdType i = 0; i < n; ++i)
+    {
+      points->GetPoint(i, x);
+      this->FindClosestPoint(x, c, cell, id, sub, d);
+      ids[i] = id;
+      for (int k = 0; k < 3; ++k)
+      {
+        cp[3 * i + k] = id >= 0 ? c[k] : nan;
+      }
+      if (d2)
+      {
+        d2[i] = id >= 0 ? d : inf;
+      }
+    }
+  }
+}
+
+//------------------------------------------------------------------------------
 int vtkMatrixTreeLocator::GetTreeHeight()
 {
   return this->Internals->Valid ? this->Internals->Tree.height() : 0;
@@ -890,7 +1248,11 @@ vtkIdType vtkMatrixTreeLocator::GetNumberOfReferences()
 vtkIdType vtkMatrixTreeLocator::GetMemorySize()
 {
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
-  return in.Valid ? static_cast<vtkIdType>(in.Tree.bytes() + in.CellBounds.size() * sizeof(double)) : 0;
+  return in.Valid ? static_cast<vtkIdType>(in.Tree.bytes() + in.Cells.bytes() + in.LeafBoxes.size()) : 0;
+}
+const char* vtkMatrixTreeLocator::GetBuildPhases()
+{
+  return this->Internals->Phases.c_str();
 }
 double vtkMatrixTreeLocator::GetLastBuildTime()
 {
@@ -908,6 +1270,7 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetBlockSize(other->BlockSize);
   this->SetLeafScale(other->LeafScale);
   this->SetExactOverlap(other->ExactOverlap);
+  this->SetFullSeparatingAxes(other->FullSeparatingAxes);
   this->SetMaxCandidates(other->MaxCandidates);
   this->SetNumberOfThreads(other->NumberOfThreads);
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
@@ -921,6 +1284,7 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "Height: " << this->Height << (this->Height == 0 ? " (automatic)" : "") << "\n";
   os << indent << "BlockSize: " << this->BlockSize << "\n";
   os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";
+  os << indent << "FullSeparatingAxes: " << (this->FullSeparatingAxes ? "On" : "Off") << "\n";
   os << indent << "LeafScale: " << this->LeafScale << "\n";
   os << indent << "MaxCandidates: " << this->MaxCandidates << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";

@@ -36,7 +36,11 @@
 #include "vtkAbstractCellLocator.h"
 #include "vtkVersionMacros.h" // For VTK_VERSION_CHECK
 
+class vtkDataArray;
+class vtkDoubleArray;
 class vtkIdList;
+class vtkIdTypeArray;
+class vtkPoints;
 class vtkGenericCell;
 class vtkPolyData;
 class vtkUnstructuredGrid;
@@ -94,6 +98,17 @@ public:
   vtkSetMacro(ExactOverlap, bool);
   vtkGetMacro(ExactOverlap, bool);
   vtkBooleanMacro(ExactOverlap, bool);
+  ///@}
+
+  ///@{
+  /**
+   * With ExactOverlap: test the cells' face normals only (default off: conservative, a few more
+   * cells per leaf, a much cheaper build) or also the edge x box-axis products (exact for
+   * convex cells). Answers are the same either way.
+   */
+  vtkSetMacro(FullSeparatingAxes, bool);
+  vtkGetMacro(FullSeparatingAxes, bool);
+  vtkBooleanMacro(FullSeparatingAxes, bool);
   ///@}
 
   ///@{
@@ -172,13 +187,46 @@ public:
   bool InsideCellBounds(double x[3], vtkIdType cellId) override;
 
   ///@{
+  /**
+   * Batched queries, OpenMP-parallel over the inputs (NumberOfThreads; 0 = all), each answer
+   * identical to the one-point call. Outputs are resized and overwritten; optional ones may be
+   * nullptr. Bad input (a null or non-3-component array, mismatched lengths) is reported with
+   * vtkErrorMacro and leaves the outputs empty.
+   *
+   * FindCells: per point, FindCell(x, 0, cell, pcoords, weights): cellIds gets the cell or -1;
+   * pcoords 3 components; weights GetMaxCellSize() components (unused ones 0).
+   */
+  void FindCells(vtkPoints* points, vtkIdTypeArray* cellIds, vtkDoubleArray* pcoords = nullptr,
+    vtkDoubleArray* weights = nullptr);
+  /**
+   * IntersectSegments: per segment p1[i] -> p2[i], the first hit of IntersectWithLine with
+   * tolerance tol: t along the segment (0..1; +inf on a miss), cellIds (-1 on a miss) and the
+   * hit point (NaN on a miss).
+   */
+  void IntersectSegments(vtkDataArray* p1, vtkDataArray* p2, double tol, vtkDoubleArray* t,
+    vtkIdTypeArray* cellIds, vtkDoubleArray* points = nullptr);
+  /**
+   * FindClosestPoints: per point, FindClosestPoint: the closest point on the cells, the cell
+   * and the squared distance (-1, NaN and +inf for an empty data set).
+   */
+  void FindClosestPoints(vtkPoints* points, vtkDoubleArray* closestPoints, vtkIdTypeArray* cellIds,
+    vtkDoubleArray* dist2 = nullptr);
+  ///@}
+
+  ///@{
   /** Build statistics of the last build. */
   int GetTreeHeight();
   vtkIdType GetNumberOfLeaves();
   vtkIdType GetNumberOfReferences();
-  /** Bytes of the tree plus the cached cell bounds. */
+  /**
+   * Bytes held: the tree (pointer matrices, blocks, leaf ranges, cell index lists), the
+   * engine's copy of the cells (points, 32-bit connectivity and offsets, types, float bounds)
+   * and the quantized leaf-local cell boxes (6 bytes per reference).
+   */
   vtkIdType GetMemorySize();
   double GetLastBuildTime();
+  /** Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; total ..."). */
+  const char* GetBuildPhases();
   ///@}
 
   /** Copies the settings (not the tree) of another vtkMatrixTreeLocator. */
@@ -195,6 +243,7 @@ protected:
   int Height = 0;
   int BlockSize = 8;
   bool ExactOverlap = true;
+  bool FullSeparatingAxes = false;
   double LeafScale = 1.0;
   double MaxCandidates = 16.0;
   int NumberOfThreads = 0;

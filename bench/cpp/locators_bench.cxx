@@ -1,7 +1,7 @@
 // Locator benchmark driver: every locator on one grid, the same seeded points and segments, in
 // one process. Prints one JSON object per locator on stdout (bench/locators.py collects them).
 //
-//   locators_bench GRID.vtu|.vtp NUM_POINTS NUM_RAYS THREADS [HEIGHT]
+//   locators_bench GRID.vtu|.vtp NUM_POINTS NUM_RAYS THREADS [HEIGHT [ONLY,NAMES]]
 //
 // FindCell runs single-threaded and on THREADS OpenMP threads (one vtkGenericCell per thread:
 // FindCell with a generic cell is thread-safe in every locator measured). IntersectWithLine is
@@ -59,6 +59,9 @@ int main(int argc, char* argv[])
   const std::string path = argv[1];
   const int nPts = std::atoi(argv[2]), nRays = std::atoi(argv[3]), threads = std::atoi(argv[4]);
   const int height = argc > 5 ? std::atoi(argv[5]) : 0; // matrix-tree height, 0 = automatic
+  // Optional comma-separated list of locator names to run (for profiling one of them);
+  // without vtkCellLocator in the list, disagreements are not counted (-1).
+  const std::string only = argc > 6 ? argv[6] : "";
   vtkSmartPointer<vtkDataSet> ds;
   if (path.size() > 4 && path.substr(path.size() - 4) == ".vtp")
   {
@@ -122,6 +125,15 @@ int main(int argc, char* argv[])
   locs.push_back({ "vtkCellLocator", vtkSmartPointer<vtkCellLocator>::New() });
   locs.push_back({ "vtkCellTreeLocator", vtkSmartPointer<vtkCellTreeLocator>::New() });
   locs.push_back({ "vtkModifiedBSPTree", vtkSmartPointer<vtkModifiedBSPTree>::New() });
+  if (!only.empty())
+  {
+    const std::string list = "," + only + ",";
+    locs.erase(std::remove_if(locs.begin(), locs.end(),
+                 [&](const Entry& e) {
+                   return list.find("," + std::string(e.name) + ",") == std::string::npos;
+                 }),
+      locs.end());
+  }
 
   struct Result
   {
@@ -179,14 +191,20 @@ int main(int argc, char* argv[])
   }
   // Disagreements with vtkCellLocator: found/not found differs, or a different cell that does
   // not contain the point.
-  const std::vector<vtkIdType>& ref = results[4].found; // vtkCellLocator
+  size_t refIndex = 0;
+  while (refIndex < locs.size() && std::string(locs[refIndex].name) != "vtkCellLocator")
+    ++refIndex;
+  const bool haveRef = refIndex < locs.size();
   for (size_t li = 0; li < locs.size(); ++li)
   {
     const Result& r = results[li];
-    long long dis = 0, found = 0;
+    long long dis = haveRef ? 0 : -1, found = 0;
     for (int i = 0; i < nPts; ++i)
     {
       found += r.found[i] >= 0;
+      if (!haveRef)
+        continue;
+      const std::vector<vtkIdType>& ref = results[refIndex].found;
       if ((r.found[i] < 0) != (ref[i] < 0) ||
         (r.found[i] >= 0 && r.found[i] != ref[i] && !Contains(ds, r.found[i], &pts[3 * i])))
         ++dis;

@@ -1,5 +1,9 @@
 #include "mtree/cells.h"
 
+#include <omp.h>
+
+#include "mtree/parallel.h"
+
 namespace mtree {
 
 namespace {
@@ -45,6 +49,76 @@ const CellTopology* cellTopology(uint8_t type) {
     case kPyramid: return &pyramid;
     default: return nullptr;  // voxels and pixels are their bounding box; others are padded
   }
+}
+
+std::vector<uint32_t> CellSet::narrow(const std::vector<int64_t>& v, const char* what) {
+  std::vector<uint32_t> out(v.size());
+  for (size_t i = 0; i < v.size(); ++i) {
+    if (v[i] < 0) throw std::invalid_argument(std::string("CellSet: negative ") + what + " " + std::to_string(v[i]));
+    if (v[i] >= 0xffffffffLL) throw std::length_error(std::string("CellSet: ") + what + " past 2^32 - 1");
+    out[i] = static_cast<uint32_t>(v[i]);
+  }
+  return out;
+}
+
+void CellSet::validate() const {
+  for (size_t i = 0; i < pts_.size(); ++i)
+    if (!std::isfinite(pts_[i]))
+      throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
+  const uint64_t np = pts_.size() / 3;
+  for (size_t c = 0; c + 1 < off_.size(); ++c)
+    if (off_[c + 1] < off_[c]) throw std::invalid_argument("CellSet: offsets must not decrease");
+  for (size_t k = 0; k < conn_.size(); ++k)
+    if (conn_[k] >= np) {
+      const size_t c = static_cast<size_t>(std::upper_bound(off_.begin(), off_.end(), uint32_t(k)) - off_.begin()) - 1;
+      throw std::invalid_argument("CellSet: cell " + std::to_string(c) + " refers to point " +
+                                  std::to_string(conn_[k]) + " of " + std::to_string(np));
+    }
+}
+
+namespace {
+// The float nearest x on the side of `dir` (-1: not above x, +1: not below x).
+inline float roundOut(double x, int dir) {
+  const double big = std::numeric_limits<float>::max();
+  const float inf = std::numeric_limits<float>::infinity();
+  if (x > big) return dir < 0 ? std::numeric_limits<float>::max() : inf;
+  if (x < -big) return dir < 0 ? -inf : -std::numeric_limits<float>::max();
+  float f = static_cast<float>(x);
+  if (dir < 0 && static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  if (dir > 0 && static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+}  // namespace
+
+void CellSet::computeBounds(int threads) {
+  const int64_t n = static_cast<int64_t>(size());
+  box_.resize(static_cast<size_t>(n) * 6);
+  const int nt = resolveThreads(threads);
+  std::vector<Vec3> ext(static_cast<size_t>(nt), Vec3(0, 0, 0));
+#pragma omp parallel num_threads(nt)
+  {
+    Vec3 m(0, 0, 0);
+#pragma omp for schedule(static)
+    for (int64_t c = 0; c < n; ++c) {
+      Box b = exactBounds(static_cast<size_t>(c));
+      const uint8_t t = types_[c];
+      if (!b.empty() && !cellTopology(t) && t != kVoxel && t != kPixel) {
+        const Vec3 e = b.extent();
+        const double pad = 0.05 * std::max(e.x, std::max(e.y, e.z));
+        b.lo = b.lo - Vec3(pad, pad, pad);
+        b.hi = b.hi + Vec3(pad, pad, pad);
+      }
+      float* f = &box_[6 * static_cast<size_t>(c)];
+      for (int a = 0; a < 3; ++a) {
+        f[2 * a] = roundOut(b.lo[a], -1);
+        f[2 * a + 1] = roundOut(b.hi[a], +1);
+        if (!b.empty()) m[a] = std::max(m[a], double(f[2 * a + 1]) - double(f[2 * a]));
+      }
+    }
+    ext[static_cast<size_t>(omp_get_thread_num())] = m;
+  }
+  maxExt_ = Vec3(0, 0, 0);
+  for (const Vec3& e : ext) maxExt_ = vmax(maxExt_, e);
 }
 
 }  // namespace mtree

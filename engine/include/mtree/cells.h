@@ -14,7 +14,10 @@
 // engine itself does not depend on VTK.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -52,6 +55,12 @@ struct CellTopology {
 };
 const CellTopology* cellTopology(uint8_t type);  // nullptr: no table (bounding box is used)
 
+/// Which separating axes the exact overlap test uses. Faces: the box normals (implicit in the
+/// candidate range) and the cell's face normals — conservative (it may keep a leaf that only
+/// an edge-cross axis would separate), about 5x cheaper for tetrahedra. All: also the cross
+/// products of the cell's edges with the box axes — exact for convex cells.
+enum class CellAxes : int { Faces = 0, All = 1 };
+
 class CellSet {
  public:
   static constexpr int kMaxLocalPoints = 8;
@@ -59,54 +68,76 @@ class CellSet {
   CellSet() = default;
   /// points: 3 doubles per point; offsets: numCells + 1 entries into connectivity; types: one
   /// VTK cell type per cell. Throws std::invalid_argument on inconsistent arrays, an index out of
-  /// range, or a non-finite coordinate.
-  CellSet(std::vector<double> points, std::vector<int64_t> offsets, std::vector<int64_t> connectivity,
-          std::vector<uint8_t> types)
+  /// range, or a non-finite coordinate, and std::length_error past 2^32 - 1 connectivity
+  /// entries or points (indices are stored in 32 bits). threads: OpenMP threads for the cached
+  /// bounds (0 = OpenMP's default).
+  CellSet(std::vector<double> points, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
+          std::vector<uint8_t> types, int threads = 0)
       : pts_(std::move(points)), off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
     if (pts_.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
-    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 ||
-        off_.back() != static_cast<int64_t>(conn_.size()))
+    if (pts_.size() / 3 >= 0xffffffffu) throw std::length_error("CellSet: more than 2^32 - 1 points");
+    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 || off_.back() != conn_.size())
       throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
-    for (size_t i = 0; i < pts_.size(); ++i)
-      if (!std::isfinite(pts_[i]))
-        throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
-    const int64_t np = static_cast<int64_t>(pts_.size() / 3);
-    for (size_t c = 0; c + 1 < off_.size(); ++c) {
-      if (off_[c + 1] < off_[c]) throw std::invalid_argument("CellSet: offsets must not decrease");
-      for (int64_t k = off_[c]; k < off_[c + 1]; ++k)
-        if (conn_[k] < 0 || conn_[k] >= np)
-          throw std::invalid_argument("CellSet: cell " + std::to_string(c) + " refers to point " +
-                                      std::to_string(conn_[k]) + " of " + std::to_string(np));
-    }
+    validate();
+    computeBounds(threads);
   }
+  /// The same from 64-bit offsets and connectivity (converted; see above for the limits).
+  CellSet(std::vector<double> points, const std::vector<int64_t>& offsets, const std::vector<int64_t>& connectivity,
+          std::vector<uint8_t> types, int threads = 0)
+      : CellSet(std::move(points), narrow(offsets, "offset"), narrow(connectivity, "point index"), std::move(types),
+                threads) {}
 
   size_t size() const { return types_.size(); }
   uint8_t type(size_t c) const { return types_[c]; }
-  int64_t numCellPoints(size_t c) const { return off_[c + 1] - off_[c]; }
+  int64_t numCellPoints(size_t c) const { return int64_t(off_[c + 1]) - int64_t(off_[c]); }
+  const uint32_t* cellPointIds(size_t c) const { return conn_.data() + off_[c]; }
   Vec3 cellPoint(size_t c, int64_t k) const { return Vec3(&pts_[3 * size_t(conn_[off_[c] + k])]); }
 
+  /// Cached bounds as 6 floats (xmin xmax ymin ymax zmin zmax, VTK's order), rounded outwards
+  /// so they contain the exact bounds; higher-order and polyhedral cells are padded by 5% of
+  /// their largest extent, because curved edges can bulge past the nodes. Empty cells: inf/-inf.
+  const float* cellBox(size_t c) const { return &box_[6 * c]; }
+  /// Cached (conservative) bounds as a Box: what the tree build uses.
   Box bounds(size_t c) const {
+    const float* f = cellBox(c);
     Box b;
-    for (int64_t k = 0; k < numCellPoints(c); ++k) b.extend(cellPoint(c, k));
-    if (b.empty()) return b;
-    if (!cellTopology(types_[c]) && types_[c] != kVoxel && types_[c] != kPixel) {
-      const Vec3 e = b.extent();
-      const double pad = 0.05 * std::max(e.x, std::max(e.y, e.z));
-      b.lo = b.lo - Vec3(pad, pad, pad);
-      b.hi = b.hi + Vec3(pad, pad, pad);
-    }
+    b.lo = Vec3(f[0], f[2], f[4]);
+    b.hi = Vec3(f[1], f[3], f[5]);
     return b;
   }
+  /// Exact bounds of the cell's points (VTK's GetCellBounds), computed on demand.
+  Box exactBounds(size_t c) const {
+    Box b;
+    for (int64_t k = 0; k < numCellPoints(c); ++k) b.extend(cellPoint(c, k));
+    return b;
+  }
+  /// Largest extent along each axis of the cached bounds.
+  Vec3 maxExtent() const { return maxExt_; }
 
-  /// One cell with its points fetched once (for the builder).
+  void setAxes(CellAxes a) { axes_ = a; }
+  CellAxes axes() const { return axes_; }
+
+  /// One cell as the builder sees it: bounds at once, points fetched only for the exact test.
   struct Local {
-    Vec3 p[kMaxLocalPoints];
-    int n = 0;
-    const CellTopology* topo = nullptr;
+    const CellSet* set = nullptr;
+    size_t cell = 0;
     Box box;
     Box bounds() const { return box; }
+    /// Points and topology; false for types without a table or a malformed point count.
+    bool fetch(Vec3* p, int& n, const CellTopology*& topo) const {
+      topo = cellTopology(set->type(cell));
+      const int64_t np = set->numCellPoints(cell);
+      if (!topo || np != topo->numPoints) return false;
+      n = static_cast<int>(np);
+      for (int k = 0; k < n; ++k) p[k] = set->cellPoint(cell, k);
+      return true;
+    }
     bool overlaps(const Box& b) const {
-      if (!topo) return box.overlaps(b);
+      Vec3 p[kMaxLocalPoints];
+      int n = 0;
+      const CellTopology* topo = nullptr;
+      if (!box.overlaps(b)) return false;
+      if (!fetch(p, n, topo)) return true;  // the bounding box decides
       Vec3 normals[12], edges[12];
       int nf = 0;
       for (int f = 0; f < topo->numFaces; ++f) {
@@ -114,8 +145,9 @@ class CellSet {
         normals[nf++] = cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
         if (topo->faceSize[f] == 4) normals[nf++] = cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[0]]);
       }
-      for (int e = 0; e < topo->numEdges; ++e) edges[e] = p[topo->edge[e][1]] - p[topo->edge[e][0]];
-      return convexOverlapsBox(p, n, normals, nf, edges, topo->numEdges, b);
+      const int ne = set->axes() == CellAxes::All ? topo->numEdges : 0;
+      for (int e = 0; e < ne; ++e) edges[e] = p[topo->edge[e][1]] - p[topo->edge[e][0]];
+      return convexOverlapsBox(p, n, normals, nf, edges, ne, b);
     }
     /// The separating-axis test against many boxes of one size (the builder's candidate
     /// leaves): axes, the cell's projection intervals and the box radii computed once, then one
@@ -136,7 +168,10 @@ class CellSet {
     };
     Tester tester(Vec3 half) const {
       Tester t;
-      if (!topo) return t;  // no axes: every candidate of the bounding-box range overlaps
+      Vec3 p[kMaxLocalPoints];
+      int n = 0;
+      const CellTopology* topo = nullptr;
+      if (!fetch(p, n, topo)) return t;  // no axes: every candidate of the bounding-box range overlaps
       auto add = [&](Vec3 ax) {
         if ((ax.x == 0 && ax.y == 0 && ax.z == 0) || t.n == Tester::kMaxAxes) return;
         double mn = std::numeric_limits<double>::infinity(), mx = -mn;
@@ -156,25 +191,22 @@ class CellSet {
         add(cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]));
         if (topo->faceSize[f] == 4) add(cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[0]]));
       }
-      for (int e = 0; e < topo->numEdges; ++e) {
-        const Vec3 d = p[topo->edge[e][1]] - p[topo->edge[e][0]];
-        add(Vec3(0, -d.z, d.y));
-        add(Vec3(d.z, 0, -d.x));
-        add(Vec3(-d.y, d.x, 0));
+      if (set->axes() == CellAxes::All) {
+        for (int e = 0; e < topo->numEdges; ++e) {
+          const Vec3 d = p[topo->edge[e][1]] - p[topo->edge[e][0]];
+          add(Vec3(0, -d.z, d.y));
+          add(Vec3(d.z, 0, -d.x));
+          add(Vec3(-d.y, d.x, 0));
+        }
       }
       return t;
     }
   };
   Local local(size_t c) const {
     Local l;
+    l.set = this;
+    l.cell = c;
     l.box = bounds(c);
-    const int64_t n = numCellPoints(c);
-    const CellTopology* t = cellTopology(types_[c]);
-    if (t && n == t->numPoints) {  // a malformed cell (wrong point count) falls back to its box
-      l.topo = t;
-      l.n = static_cast<int>(n);
-      for (int k = 0; k < l.n; ++k) l.p[k] = cellPoint(c, k);
-    }
     return l;
   }
   bool overlaps(size_t c, const Box& b) const { return local(c).overlaps(b); }
@@ -183,23 +215,38 @@ class CellSet {
   /// coordinate of p lies outside [-tol, 1 + tol]. Degenerate or non-finite cases answer true
   /// (let the exact test decide).
   bool tetraMayContain(size_t c, Vec3 p, double tol) const {
-    const Vec3 p0 = cellPoint(c, 0), p1 = cellPoint(c, 1), p2 = cellPoint(c, 2), p3 = cellPoint(c, 3);
+    const uint32_t* id = cellPointIds(c);
+    const Vec3 p0(&pts_[3 * size_t(id[0])]), p1(&pts_[3 * size_t(id[1])]), p2(&pts_[3 * size_t(id[2])]),
+        p3(&pts_[3 * size_t(id[3])]);
     const Vec3 a = p1 - p0, b = p2 - p0, d = p3 - p0, r = p - p0;
-    const double det = dot(a, cross(b, d));
+    const Vec3 bd = cross(b, d);
+    const double det = dot(a, bd);
     if (!(std::fabs(det) > 0) || !std::isfinite(det)) return true;
     const double inv = 1.0 / det;
-    const double u = dot(r, cross(b, d)) * inv, v = dot(a, cross(r, d)) * inv, w = dot(a, cross(b, r)) * inv;
+    const double u = dot(r, bd) * inv, v = dot(a, cross(r, d)) * inv, w = dot(a, cross(b, r)) * inv;
     const double s = 1.0 - u - v - w;
     const double lo = -tol, hi = 1.0 + tol;
     return u >= lo && u <= hi && v >= lo && v <= hi && w >= lo && w <= hi && s >= lo && s <= hi;
   }
 
   const std::vector<double>& points() const { return pts_; }
+  /// Bytes held: points, offsets, connectivity, types and cached bounds.
+  size_t bytes() const {
+    return pts_.size() * sizeof(double) + (off_.size() + conn_.size()) * sizeof(uint32_t) + types_.size() +
+           box_.size() * sizeof(float);
+  }
 
  private:
+  static std::vector<uint32_t> narrow(const std::vector<int64_t>& v, const char* what);
+  void validate() const;
+  void computeBounds(int threads);
+
   std::vector<double> pts_;
-  std::vector<int64_t> off_, conn_;
+  std::vector<uint32_t> off_, conn_;
   std::vector<uint8_t> types_;
+  std::vector<float> box_;  // 6 per cell
+  Vec3 maxExt_;
+  CellAxes axes_ = CellAxes::Faces;
 };
 
 }  // namespace mtree
