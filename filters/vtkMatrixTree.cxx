@@ -10,17 +10,34 @@
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
 
+#include "mtree/opencl.h"
 #include "mtree/raycast.h"
 
 #include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
 #include <limits>
+
+// The OpenCL backend's objects: the device context, the builder (its device buffers are reused
+// by every rebuild) and the tracer that holds the last OpenCL-built tree for the queries.
+struct vtkMatrixTreeOpenCL
+{
+  std::shared_ptr<mtree::ocl::Context> Context;
+  std::unique_ptr<mtree::ocl::Builder> Builder;
+  std::unique_ptr<mtree::ocl::Tracer> Tracer;
+  std::string Selector;
+  std::string DeviceName;
+  bool TreeOnDevice = false;
+};
 
 vtkStandardNewMacro(vtkMatrixTree);
 vtkCxxSetObjectMacro(vtkMatrixTree, DataSet, vtkPolyData);
 
 //------------------------------------------------------------------------------
 vtkMatrixTree::vtkMatrixTree()
-  : Internals(new vtkMatrixTreeInternals)
+  : OpenCL(new vtkMatrixTreeOpenCL)
+  , Internals(new vtkMatrixTreeInternals)
 {
 }
 
@@ -28,6 +45,8 @@ vtkMatrixTree::vtkMatrixTree()
 vtkMatrixTree::~vtkMatrixTree()
 {
   this->SetDataSet(nullptr);
+  this->SetOpenCLDevice(nullptr);
+  delete this->OpenCL;
   delete this->Internals;
 }
 
@@ -63,13 +82,35 @@ bool vtkMatrixTree::Build()
   opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
   opt.leafScale = this->LeafScale;
   opt.threads = this->NumberOfThreads;
+  vtkMatrixTreeOpenCL& cl = *this->OpenCL;
+  cl.TreeOnDevice = false;
   try
   {
-    mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(in.Mesh, opt, in.Tree, &in.Stats);
+    if (this->Backend == OPENCL)
+    {
+      const std::string selector = this->OpenCLDevice ? this->OpenCLDevice : "";
+      if (!cl.Context || selector != cl.Selector)
+      {
+        cl.Builder.reset();
+        cl.Tracer.reset();
+        cl.Context = mtree::ocl::Context::shared(selector);
+        cl.Selector = selector;
+        cl.DeviceName = cl.Context->device().name;
+        cl.Builder.reset(new mtree::ocl::Builder(cl.Context));
+        cl.Tracer.reset(new mtree::ocl::Tracer(cl.Context));
+      }
+      cl.Builder->build(in.Mesh, opt, in.Tree, &in.Stats);
+      cl.Tracer->upload(in.Tree, in.Mesh);
+      cl.TreeOnDevice = true;
+    }
+    else
+    {
+      mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(in.Mesh, opt, in.Tree, &in.Stats);
+    }
   }
   catch (const std::exception& e)
   {
-    vtkErrorMacro("Build failed: " << e.what());
+    vtkErrorMacro("Build failed (" << this->GetBackendAsString() << " backend): " << e.what());
     return false;
   }
   in.Valid = true;
@@ -187,6 +228,24 @@ void vtkMatrixTree::FindLeaves(vtkDataArray* points, vtkIntArray* result)
   result->SetNumberOfTuples(n);
   const mtree::MatrixTree& tree = this->Internals->Tree;
   int* out = result->GetPointer(0);
+  if (this->Backend == OPENCL && this->OpenCL->TreeOnDevice)
+  {
+    std::vector<double> p(3 * static_cast<size_t>(n));
+    for (vtkIdType i = 0; i < n; ++i)
+    {
+      points->GetTuple(i, &p[3 * i]);
+    }
+    try
+    {
+      this->OpenCL->Tracer->findLeaves(p.data(), static_cast<size_t>(n), out);
+    }
+    catch (const std::exception& e)
+    {
+      vtkErrorMacro("FindLeaves (opencl backend): " << e.what());
+      result->SetNumberOfTuples(0);
+    }
+    return;
+  }
   const int threads = mtree::resolveThreads(this->NumberOfThreads);
 #pragma omp parallel for num_threads(threads) schedule(static) if (n > 4096)
   for (vtkIdType i = 0; i < n; ++i)
@@ -227,6 +286,35 @@ vtkIdType vtkMatrixTree::IntersectRays(vtkDataArray* origins, vtkDataArray* dire
   double* tOut = t->GetPointer(0);
   vtkIdType* cOut = cellIds->GetPointer(0);
   vtkIdType hits = 0, visits = 0, tests = 0;
+  if (this->Backend == OPENCL && this->OpenCL->TreeOnDevice)
+  {
+    const size_t m = static_cast<size_t>(n);
+    std::vector<double> o(3 * m), d(3 * m);
+    for (vtkIdType i = 0; i < n; ++i)
+    {
+      origins->GetTuple(i, &o[3 * i]);
+      directions->GetTuple(i, &d[3 * i]);
+    }
+    std::vector<uint32_t> prim(m);
+    uint64_t v = 0, c = 0;
+    try
+    {
+      this->OpenCL->Tracer->intersectFirst(o.data(), d.data(), m, 0.0, tMax, tOut, prim.data(), &v, &c);
+    }
+    catch (const std::exception& e)
+    {
+      vtkErrorMacro("IntersectRays (opencl backend): " << e.what());
+      return 0;
+    }
+    for (size_t i = 0; i < m; ++i)
+    {
+      cOut[i] = prim[i] == MT_NULL ? -1 : in.CellOfTriangle[prim[i]];
+      hits += prim[i] != MT_NULL;
+    }
+    this->LastNodeVisits = static_cast<vtkIdType>(v);
+    this->LastTriangleTests = static_cast<vtkIdType>(c);
+    return hits;
+  }
   const int threads = mtree::resolveThreads(this->NumberOfThreads);
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 256) reduction(+ : hits, visits, tests)
   for (vtkIdType i = 0; i < n; ++i)
@@ -266,6 +354,9 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";
   os << indent << "LeafScale: " << this->LeafScale << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
+  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
+  os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
+  os << indent << "OpenCLDeviceName: " << this->GetOpenCLDeviceName() << "\n";
   os << indent << "ConversionTime: " << this->ConversionTime << " ms\n";
   os << indent << "LastNodeVisits: " << this->LastNodeVisits << "\n";
   os << indent << "LastTriangleTests: " << this->LastTriangleTests << "\n";
@@ -278,4 +369,15 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
     os << indent << "MemorySize: " << this->GetMemorySize() << " bytes\n";
     os << indent << "BuildTime: " << this->GetBuildTime() << " ms\n";
   }
+}
+
+//------------------------------------------------------------------------------
+const char* vtkMatrixTree::GetOpenCLDeviceName() const
+{
+  return this->OpenCL->DeviceName.c_str();
+}
+
+mtree::ocl::Tracer* vtkMatrixTree::GetOpenCLTracer()
+{
+  return this->Backend == OPENCL && this->OpenCL->TreeOnDevice ? this->OpenCL->Tracer.get() : nullptr;
 }

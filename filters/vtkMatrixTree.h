@@ -16,6 +16,10 @@
  * - ExactOverlap: on (default) puts a triangle only in the leaves it really overlaps
  *   (separating-axis test); off uses its bounding box (faster build, more tests per ray).
  * - NumberOfThreads: OpenMP threads for the build and the batched queries (0 = all).
+ * - Backend: CPU (default, the OpenMP engine) or OPENCL (the build and the batched queries as
+ *   OpenCL kernels, on the device OpenCLDevice selects; the same tree and the same answers).
+ *   OPENCL without a device, or in a build without OpenCL, makes Build() fail with an error
+ *   that says so.
  *
  * The tree is rebuilt by BuildIfNeeded() only when the data set, its points, or a setting
  * changed since the last build; Build() always rebuilds.
@@ -38,6 +42,15 @@ class vtkIdTypeArray;
 class vtkIntArray;
 class vtkPolyData;
 struct vtkMatrixTreeInternals;
+#ifndef __VTK_WRAP__
+namespace mtree
+{
+namespace ocl
+{
+class Tracer;
+}
+}
+#endif
 
 class MATRIXTREEFILTERS_EXPORT vtkMatrixTree : public vtkObject
 {
@@ -90,6 +103,34 @@ public:
   vtkSetClampMacro(LeafScale, double, 1e-3, 1e3);
   vtkGetMacro(LeafScale, double);
   ///@}
+
+  enum Backends
+  {
+    CPU = 0,
+    OPENCL = 1
+  };
+
+  ///@{
+  /** Where the build and the batched queries run: CPU (default) or OPENCL. */
+  vtkSetClampMacro(Backend, int, CPU, OPENCL);
+  vtkGetMacro(Backend, int);
+  void SetBackendToCPU() { this->SetBackend(CPU); }
+  void SetBackendToOpenCL() { this->SetBackend(OPENCL); }
+  const char* GetBackendAsString() const { return this->Backend == OPENCL ? "opencl" : "cpu"; }
+  ///@}
+
+  ///@{
+  /**
+   * OpenCL device selector (default empty: $MATRIXTREE_OPENCL_DEVICE, else the first GPU, else
+   * the first device): "P:D" (platform and device index), "N" (N-th device), or part of the
+   * platform or device name.
+   */
+  vtkSetStringMacro(OpenCLDevice);
+  vtkGetStringMacro(OpenCLDevice);
+  ///@}
+
+  /** Name of the OpenCL device of the last OpenCL build ("" if none). */
+  const char* GetOpenCLDeviceName() const;
 
   ///@{
   /** OpenMP threads for build and batched queries; 0 (default) = all. */
@@ -155,6 +196,8 @@ public:
 #ifndef __VTK_WRAP__
   /** The engine objects (for the module's other classes; not wrapped). */
   vtkMatrixTreeInternals* GetInternals() { return this->Internals; }
+  /** The OpenCL tracer holding the last OpenCL build's tree (nullptr for the CPU backend). */
+  mtree::ocl::Tracer* GetOpenCLTracer();
 #endif
 
 protected:
@@ -168,6 +211,9 @@ protected:
   bool ExactOverlap = true;
   double LeafScale = 2.0;
   int NumberOfThreads = 0;
+  int Backend = CPU;
+  char* OpenCLDevice = nullptr;
+  struct vtkMatrixTreeOpenCL* OpenCL;
   double ConversionTime = 0;
   vtkIdType LastNodeVisits = 0;
   vtkIdType LastTriangleTests = 0;

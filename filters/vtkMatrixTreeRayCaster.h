@@ -78,6 +78,18 @@ public:
   ///@}
 
   ///@{
+  /**
+   * Backend of the build and of the rays: "cpu" (default) or "opencl" (the tree's backend, see
+   * vtkMatrixTree::SetBackend). With "opencl" the primary and the shadow rays are traced as two
+   * batches on the device (shading stays on the host); NodeVisits and TriangleTests per pixel
+   * are then 0 (only the totals are kept). No device: RequestData fails with an error.
+   */
+  void SetBackendToCPU();
+  void SetBackendToOpenCL();
+  int GetBackend();
+  ///@}
+
+  ///@{
   /** Statistics of the last execution. Times in milliseconds. */
   vtkGetMacro(LastBuildTime, double);
   vtkGetMacro(LastRenderTime, double);

@@ -14,6 +14,12 @@ from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
 _TREES = {"octree": 0, "kdtree": 1}
 
 
+def _backend(backend: str) -> int:
+    if backend not in ("cpu", "opencl"):
+        raise ValueError(f"backend must be 'cpu' or 'opencl', got {backend!r}")
+    return vtkMatrixTree.OPENCL if backend == "opencl" else vtkMatrixTree.CPU
+
+
 def _tree_type(tree: str) -> int:
     try:
         return _TREES[tree]
@@ -139,6 +145,12 @@ class MatrixTree:
         Target leaf extent of the automatic height, in median triangle extents.
     threads : int, default: 0
         OpenMP threads, 0 = all.
+    backend : {"cpu", "opencl"}, default: "cpu"
+        Where the build and the queries run: the OpenMP engine, or OpenCL kernels (same tree,
+        same answers). ``"opencl"`` without a device raises RuntimeError saying so.
+    device : str, optional
+        OpenCL device: ``"P:D"`` indices, a device number, or part of its name; default
+        ``$MATRIXTREE_OPENCL_DEVICE``, else the first GPU, else the first device.
 
     Examples
     --------
@@ -151,8 +163,10 @@ class MatrixTree:
     """
 
     def __init__(self, mesh, tree: str = "octree", height: int = 0, block_size: int = 8,
-                 exact: bool = True, leaf_scale: float = 2.0, threads: int = 0):
+                 exact: bool = True, leaf_scale: float = 2.0, threads: int = 0,
+                 backend: str = "cpu", device: str | None = None):
         self.mesh = _as_polydata(mesh)
+        backend_id = _backend(backend)
         if not (isinstance(height, (int, np.integer)) and 0 <= height <= 63):
             raise ValueError(f"height must be an integer in [0, 63] (0 = automatic), got {height!r}")
         if block_size not in (1, 2, 4, 8, 16, 32):
@@ -167,6 +181,9 @@ class MatrixTree:
         self._tree.SetExactOverlap(bool(exact))
         self._tree.SetLeafScale(float(leaf_scale))
         self._tree.SetNumberOfThreads(int(threads))
+        self._tree.SetBackend(backend_id)
+        if device is not None:
+            self._tree.SetOpenCLDevice(str(device))
         self.build()
 
     @property
@@ -177,6 +194,10 @@ class MatrixTree:
     def build(self) -> "MatrixTree":
         """(Re)build the tree now, e.g. after the mesh's points moved. Returns self."""
         if not self._tree.Build():
+            if self._tree.GetBackend() == vtkMatrixTree.OPENCL:
+                raise RuntimeError("building the matrix tree with the OpenCL backend failed: no OpenCL "
+                                   "device, a device error, or bad input (the VTK error above says which); "
+                                   "use backend='cpu' or install an OpenCL driver (e.g. pocl-opencl-icd)")
             raise RuntimeError("building the matrix tree failed: the mesh has non-finite coordinates "
                                "or bad connectivity (see the VTK error above)")
         return self
@@ -205,6 +226,8 @@ class MatrixTree:
                           for i in range(t.GetNumberOfBuildPhases())},
             "build_ms": t.GetBuildTime(),
             "conversion_ms": t.GetConversionTime(),
+            "backend": t.GetBackendAsString(),
+            "device": t.GetOpenCLDeviceName() if t.GetBackend() == vtkMatrixTree.OPENCL else "",
         }
 
     def find_leaves(self, points) -> np.ndarray:
@@ -257,7 +280,8 @@ class MatrixTree:
 
 
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
-           shadows: bool = True, threads: int = 0, caster: vtkMatrixTreeRayCaster | None = None) -> dict:
+           shadows: bool = True, threads: int = 0, caster: vtkMatrixTreeRayCaster | None = None,
+           backend: str = "cpu") -> dict:
     """Ray cast a mesh through a matrix tree: primary rays, one shadow ray per hit, Lambert shading.
 
     Parameters
@@ -276,6 +300,9 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     threads : int, default: 0
     caster : vtkMatrixTreeRayCaster, optional
         Reuse a caster (and its tree) across frames; the tree is rebuilt only if the mesh changed.
+    backend : {"cpu", "opencl"}, default: "cpu"
+        Build and trace on the OpenMP engine or with OpenCL kernels (see :class:`MatrixTree`);
+        with "opencl" the per-pixel ``node_visits``/``triangle_tests`` are 0.
 
     Returns
     -------
@@ -297,6 +324,7 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     if w < 1 or h < 1:
         raise ValueError(f"size must be two positive integers, got {size!r}")
     rc = caster if caster is not None else vtkMatrixTreeRayCaster()
+    rc.GetTree().SetBackend(_backend(backend))
     rc.GetTree().SetTreeType(_tree_type(tree))
     rc.GetTree().SetHeight(int(height))
     rc.GetTree().SetNumberOfThreads(int(threads))
