@@ -1,0 +1,152 @@
+"""vtkMatrixTreeVolumeRayCaster and matrixtree.render_volume: analytic transmittance, storage
+and skipping invariants through the VTK class, VTK's fixed-point ray caster as reference, bad input."""
+
+import os
+
+import numpy as np
+import pytest
+from vtkmodules.util.numpy_support import vtk_to_numpy
+from vtkmodules.vtkCommonDataModel import vtkImageData, vtkPiecewiseFunction
+from vtkmodules.vtkRenderingCore import vtkCamera, vtkColorTransferFunction
+
+import matrixtree
+from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
+
+VOLUMES = os.path.join(matrixtree.scenes.data_dir(), "volumes")
+
+
+def _constant_tf(alpha):
+    ctf = vtkColorTransferFunction()
+    ctf.AddRGBPoint(0.0, 1, 1, 1)
+    ctf.AddRGBPoint(2.0, 1, 1, 1)
+    otf = vtkPiecewiseFunction()
+    otf.AddPoint(0.0, alpha)
+    otf.AddPoint(2.0, alpha)
+    return ctf, otf
+
+
+def _camera(pos, focal, up=(0, 1, 0)):
+    cam = vtkCamera()
+    cam.SetPosition(*pos)
+    cam.SetFocalPoint(*focal)
+    cam.SetViewUp(*up)
+    return cam
+
+
+def test_constant_box_transmittance_through_vtk_class():
+    sigma = 0.4
+    vol = np.ones((9, 5, 5), dtype=np.float32)  # x in [0, 8] at spacing 0.5 -> [0, 4]
+    ctf, otf = _constant_tf(1 - np.exp(-sigma))
+    img = matrixtree.render_volume(vol, spacing=(0.5, 1, 1), size=(1, 1), color=ctf, opacity=otf,
+                                   camera=_camera((-3, 2, 2), (10, 2, 2)), sample_distance=1e-3,
+                                   opacity_unit_distance=1.0, early_termination=1.0)
+    assert abs((1 - img[0, 0, 3]) - np.exp(-sigma * 4.0)) < 1e-3
+
+
+def test_skipping_and_dense_storage_do_not_change_the_image():
+    im = matrixtree.read_volume(os.path.join(VOLUMES, "HeadMRVolume.mhd"))
+    common = dict(size=(48, 40), camera=matrixtree.frame_camera(im))
+    a, sa = matrixtree.render_volume(im, return_stats=True, **common)
+    b = matrixtree.render_volume(im, empty_space_skipping=False, **common)
+    assert np.abs(a - b).max() <= 1e-6
+    assert sa["blocks_allocated"] < sa["blocks_dense"]
+    assert sa["bytes"] <= 1.10 * sa["visible_block_bytes"]
+    assert a[..., 3].mean() > 0.05
+
+
+def test_numpy_and_vtk_image_inputs_agree_and_any_scalar_type():
+    x, y, z = np.mgrid[0:1:20j, 0:1:24j, 0:1:16j]
+    f = (100 * (x * y + z)).astype(np.int16)
+    cam = _camera((-2, 0.5, 0.5), (0.5, 0.5, 0.5), (0, 0, 1))
+    sp = (1 / 19, 1 / 23, 1 / 15)
+    a = matrixtree.render_volume(f, spacing=sp, size=(32, 32), camera=cam, sample_distance=0.01)
+    b = matrixtree.render_volume(f.astype(np.float64), spacing=sp, size=(32, 32), camera=cam, sample_distance=0.01)
+    assert np.abs(a - b).max() < 1e-5
+    assert a[..., 3].max() > 0.1
+
+
+def test_close_to_vtk_fixed_point_ray_caster():
+    """VTK's own ray caster as the reference image (needs an X display: xvfb-run)."""
+    pytest.importorskip("vtkmodules.vtkRenderingVolumeOpenGL2")
+    if not os.environ.get("DISPLAY"):
+        pytest.skip("no X display (run pytest under xvfb-run)")
+    import vtkmodules.vtkRenderingOpenGL2  # noqa: F401
+    import vtkmodules.vtkRenderingVolumeOpenGL2  # noqa: F401
+    from vtkmodules.vtkRenderingCore import (vtkRenderer, vtkRenderWindow, vtkVolume, vtkVolumeProperty,
+                                             vtkWindowToImageFilter)
+    from vtkmodules.vtkRenderingVolume import vtkFixedPointVolumeRayCastMapper
+
+    im = matrixtree.read_volume(os.path.join(VOLUMES, "ironProt.vtk"))
+    ctf, otf = matrixtree.default_transfer_functions(im)
+    cam = matrixtree.frame_camera(im)
+    w, h, sd = 96, 80, 0.5
+    ours = matrixtree.render_volume(im, size=(w, h), camera=cam, color=ctf, opacity=otf, sample_distance=sd,
+                                    opacity_unit_distance=1.0)
+    mapper = vtkFixedPointVolumeRayCastMapper()
+    mapper.SetInputData(im)
+    mapper.AutoAdjustSampleDistancesOff()
+    mapper.SetSampleDistance(sd)
+    mapper.SetImageSampleDistance(1.0)
+    prop = vtkVolumeProperty()
+    prop.SetColor(ctf)
+    prop.SetScalarOpacity(otf)
+    prop.SetInterpolationTypeToLinear()
+    vol = vtkVolume()
+    vol.SetMapper(mapper)
+    vol.SetProperty(prop)
+    ren = vtkRenderer()
+    ren.AddVolume(vol)
+    ren.SetActiveCamera(cam)
+    ren.ResetCameraClippingRange()
+    win = vtkRenderWindow()
+    win.SetOffScreenRendering(1)
+    win.SetSize(w, h)
+    win.AddRenderer(ren)
+    win.Render()
+    grab = vtkWindowToImageFilter()
+    grab.SetInput(win)
+    grab.SetInputBufferTypeToRGB()
+    grab.ReadFrontBufferOff()
+    grab.Update()
+    ref = vtk_to_numpy(grab.GetOutput().GetPointData().GetScalars()).reshape(h, w, 3)[::-1] / 255.0
+    diff = np.abs(np.clip(ours[..., :3], 0, 1) - ref)
+    psnr = 10 * np.log10(1.0 / np.mean(diff ** 2))
+    assert ref.mean() > 0.02, "VTK's image should not be empty"
+    assert psnr > 30, f"PSNR vs vtkFixedPointVolumeRayCastMapper {psnr:.1f} dB"
+
+
+def test_bad_input_raises_clear_errors():
+    with pytest.raises(ValueError, match="at least 2"):
+        matrixtree.render_volume(np.ones((10, 10, 1)), size=(8, 8))
+    with pytest.raises(ValueError, match="empty"):
+        matrixtree.render_volume(np.ones((0, 3, 3)), size=(8, 8))
+    with pytest.raises(ValueError, match="spacing"):
+        matrixtree.render_volume(np.ones((4, 4, 4)), spacing=(1, 0, 1), size=(8, 8))
+    with pytest.raises(ValueError, match="3-D"):
+        matrixtree.render_volume(np.ones((4, 4)), size=(8, 8))
+    im = vtkImageData()
+    im.SetDimensions(4, 4, 4)
+    im.AllocateScalars(10, 3)  # float, 3 components
+    with pytest.raises(ValueError, match="component"):
+        matrixtree.render_volume(im, size=(8, 8))
+
+
+def test_nan_scalars_render_finite():
+    v = np.ones((6, 6, 6), dtype=np.float32)
+    v[2, 3, 1] = np.nan
+    img, st = matrixtree.render_volume(v, size=(16, 16), return_stats=True)
+    assert np.isfinite(img).all()
+    assert st["non_finite"] == 1
+
+
+def test_vtk_class_reports_errors_without_crashing():
+    c = vtkMatrixTreeVolumeRayCaster()
+    im = vtkImageData()  # empty
+    c.SetInputData(im)
+    c.GlobalWarningDisplayOff()
+    try:
+        c.Update()
+    finally:
+        c.GlobalWarningDisplayOn()
+    assert c.GetOutput().GetPointData().GetArray("RGBA") is None
+    assert "ScalarOpacityUnitDistance" in str(c)
