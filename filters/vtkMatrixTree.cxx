@@ -29,6 +29,7 @@ struct vtkMatrixTreeOpenCL
   std::string Selector;
   std::string DeviceName;
   bool TreeOnDevice = false;
+  std::vector<mtree::ocl::KernelTiming> Kernels; // of the last build
 };
 
 vtkStandardNewMacro(vtkMatrixTree);
@@ -84,6 +85,7 @@ bool vtkMatrixTree::Build()
   opt.threads = this->NumberOfThreads;
   vtkMatrixTreeOpenCL& cl = *this->OpenCL;
   cl.TreeOnDevice = false;
+  cl.Kernels.clear();
   try
   {
     if (this->Backend == OPENCL)
@@ -99,7 +101,7 @@ bool vtkMatrixTree::Build()
         cl.Builder.reset(new mtree::ocl::Builder(cl.Context));
         cl.Tracer.reset(new mtree::ocl::Tracer(cl.Context));
       }
-      cl.Builder->build(in.Mesh, opt, in.Tree, &in.Stats);
+      cl.Builder->build(in.Mesh, opt, in.Tree, &in.Stats, &cl.Kernels);
       cl.Tracer->upload(in.Tree, in.Mesh);
       cl.TreeOnDevice = true;
     }
@@ -380,4 +382,24 @@ const char* vtkMatrixTree::GetOpenCLDeviceName() const
 mtree::ocl::Tracer* vtkMatrixTree::GetOpenCLTracer()
 {
   return this->Backend == OPENCL && this->OpenCL->TreeOnDevice ? this->OpenCL->Tracer.get() : nullptr;
+}
+
+int vtkMatrixTree::GetNumberOfOpenCLKernels() const
+{
+  return static_cast<int>(this->OpenCL->Kernels.size());
+}
+const char* vtkMatrixTree::GetOpenCLKernelName(int i) const
+{
+  const auto& k = this->OpenCL->Kernels;
+  return i >= 0 && i < static_cast<int>(k.size()) ? k[i].kernel.c_str() : "";
+}
+double vtkMatrixTree::GetOpenCLKernelTime(int i) const
+{
+  const auto& k = this->OpenCL->Kernels;
+  return i >= 0 && i < static_cast<int>(k.size()) ? k[i].ms : 0.0;
+}
+int vtkMatrixTree::GetOpenCLKernelLaunches(int i) const
+{
+  const auto& k = this->OpenCL->Kernels;
+  return i >= 0 && i < static_cast<int>(k.size()) ? k[i].launches : 0;
 }

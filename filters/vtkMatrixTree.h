@@ -133,6 +133,17 @@ public:
   const char* GetOpenCLDeviceName() const;
 
   ///@{
+  /**
+   * Device time of every kernel of the last OpenCL build (profiling events, summed over the
+   * kernel's launches; "(upload)", "(download)", "(fill)" are the transfers). Empty on the CPU.
+   */
+  int GetNumberOfOpenCLKernels() const;
+  const char* GetOpenCLKernelName(int i) const;
+  double GetOpenCLKernelTime(int i) const;
+  int GetOpenCLKernelLaunches(int i) const;
+  ///@}
+
+  ///@{
   /** OpenMP threads for build and batched queries; 0 (default) = all. */
   vtkSetClampMacro(NumberOfThreads, int, 0, 4096);
   vtkGetMacro(NumberOfThreads, int);
