@@ -5,10 +5,12 @@ segments, one process per grid (the C++ driver build/bin/locators_bench; a Pytho
 point would measure Python, not the locators).
 
     .venv/bin/python bench/locators.py [--grid FILE] [--points N] [--rays N] [--json OUT] [--markdown MD]
+                                       [--build-dir DIR]
 
 With no --grid it runs every CFD grid in ../shared/data/cfd and every mesh in
-../shared/data/meshes. JSON rows: grid, cells, locator, build_ms (median of 3), bytes (ours;
-VTK 9.1's locators do not report theirs: -1), findcell_pts_per_s_1thread, findcell_pts_per_s_all,
+../shared/data/meshes. JSON rows: grid, cells, locator, build_ms (median of 3), bytes (ours:
+GetMemorySize, everything the locator holds; vtkStaticCellLocator: estimated from its layout,
+VTK 9.1 reports none; the other VTK locators: -1), findcell_pts_per_s_1thread, findcell_pts_per_s_all,
 rays_per_s (segments of a quarter of the diagonal from random points, first hit), disagreements
 (FindCell answers that differ from vtkCellLocator's and do not contain the point, or found/not
 found differs).
@@ -27,7 +29,10 @@ from _common import ROOT, machine, table, write_outputs
 import matrixtree
 from matrixtree import scenes
 
-DRIVER = os.path.join(ROOT, "build", "bin", "locators_bench")
+def driver(build_dir: str | None) -> str:
+    """The C++ driver: --build-dir, else $MATRIXTREE_BUILD_DIR, else build/ (scripts/setup.sh)."""
+    d = build_dir or os.environ.get("MATRIXTREE_BUILD_DIR") or os.path.join(ROOT, "build")
+    return os.path.join(d, "bin", "locators_bench")
 
 
 def as_vtk_file(path: str, tmp: str) -> str:
@@ -57,9 +62,12 @@ def main() -> int:
     p.add_argument("--threads", type=int, default=os.cpu_count())
     p.add_argument("--json", default="out/bench_locators.json")
     p.add_argument("--markdown", default=None)
+    p.add_argument("--build-dir", default=None, help="build tree holding bin/locators_bench (default: "
+                   "$MATRIXTREE_BUILD_DIR or build/)")
     a = p.parse_args()
-    if not os.path.exists(DRIVER):
-        p.error(f"{DRIVER} is missing: run scripts/setup.sh (it builds the benchmark driver)")
+    exe = driver(a.build_dir)
+    if not os.path.exists(exe):
+        p.error(f"{exe} is missing: run scripts/setup.sh (it builds the benchmark driver)")
     d = scenes.data_dir()
     paths = a.grid or sorted(glob.glob(os.path.join(d, "cfd", "*.*")) + glob.glob(os.path.join(d, "meshes", "*.*")))
     paths = [x for x in paths if not x.endswith(".txt")]
@@ -72,7 +80,7 @@ def main() -> int:
             it = paths
         for path in it:
             f = as_vtk_file(path, tmp)
-            out = subprocess.run([DRIVER, f, str(a.points), str(a.rays), str(a.threads)], capture_output=True,
+            out = subprocess.run([exe, f, str(a.points), str(a.rays), str(a.threads)], capture_output=True,
                                  text=True, check=True).stdout
             for line in out.splitlines():
                 r = json.loads(line)
@@ -84,10 +92,11 @@ def main() -> int:
         r["findcell_speedup_vs_static"] = r["findcell_pts_per_s_1thread"] / s["findcell_pts_per_s_1thread"]
         r["rays_speedup_vs_static"] = r["rays_per_s"] / s["rays_per_s"]
         r["build_ratio_vs_static"] = r["build_ms"] / s["build_ms"]
+        r["bytes_ratio_vs_static"] = r["bytes"] / s["bytes"] if r["bytes"] > 0 and s["bytes"] > 0 else -1
         r["machine"] = machine()
     cols = ["grid", "cells", "locator", "build_ms", "bytes", "findcell_pts_per_s_1thread", "findcell_pts_per_s_all",
             "rays_per_s", "disagreements", "findcell_speedup_vs_static", "rays_speedup_vs_static",
-            "build_ratio_vs_static"]
+            "build_ratio_vs_static", "bytes_ratio_vs_static"]
     print(table(rows, cols))
     write_outputs(a.json, rows, a.markdown, rows, cols)
     return 0

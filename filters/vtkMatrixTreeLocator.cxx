@@ -343,12 +343,17 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   opt.leafScale = this->LeafScale;
   opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
   opt.maxCandidates = this->MaxCandidates;
-  opt.threads = this->NumberOfThreads;
+  // Threads: as set, or (0) one per 32k cells up to all: below that a parallel region's
+  // start and barriers cost more than the work, and far more on a loaded machine.
+  const int buildThreads = this->NumberOfThreads > 0
+    ? this->NumberOfThreads
+    : static_cast<int>(std::min<vtkIdType>(omp_get_max_threads(), std::max<vtkIdType>(1, nc / 32768)));
+  opt.threads = buildThreads;
   double convertMs2 = 0;
   try
   {
     in.Cells = mtree::CellSet(
-      std::move(pts), std::move(offsets), std::move(conn), std::move(types), this->NumberOfThreads);
+      std::move(pts), std::move(offsets), std::move(conn), std::move(types), buildThreads);
     in.Cells.setAxes(this->FullSeparatingAxes ? mtree::CellAxes::All : mtree::CellAxes::Faces);
     convertMs2 = msSince(tStart) - convertMs;
     mtree::MatrixTreeBuilder<mtree::CellSet>::build(in.Cells, opt, in.Tree, &in.Stats);
@@ -359,7 +364,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     return;
   }
   const Clock::time_point tBounds = Clock::now();
-  ComputeLeafBoxes(in, this->NumberOfThreads);
+  ComputeLeafBoxes(in, buildThreads);
   {
     const mtree::Vec3 m = in.Cells.maxExtent();
     in.MaxCellExtent[0] = m.x;

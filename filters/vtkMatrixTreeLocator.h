@@ -118,7 +118,10 @@ public:
   ///@}
 
   ///@{
-  /** OpenMP threads for the build (0 = all, default). */
+  /**
+   * OpenMP threads for the build and the batched queries (0, default: all for queries; for the
+   * build one per 32768 cells, up to all).
+   */
   vtkSetClampMacro(NumberOfThreads, int, 0, 4096);
   vtkGetMacro(NumberOfThreads, int);
   ///@}
