@@ -79,7 +79,7 @@ def mismatches(ref, tree, o, d, pts) -> int:
     return bad
 
 
-def run_scene(path: str, repeats: int, peers: bool, backends=("cpu",), device=None):
+def run_scene(path: str, repeats: int, peers: bool, backends=("cpu",), device=None, threads=0):
     name = os.path.splitext(os.path.basename(path))[0]
     mesh = load(path)
     n = mesh.GetNumberOfPolys()
@@ -90,7 +90,8 @@ def run_scene(path: str, repeats: int, peers: bool, backends=("cpu",), device=No
     refs = {}  # the CPU engine's tree per (kind, exact): the reference of the OpenCL rows
     for kind in ("octree", "kdtree"):
         for exact, backend in itertools.product((True, False), backends):
-            tree = matrixtree.MatrixTree(mesh, tree=kind, exact=exact, backend=backend, device=device)
+            tree = matrixtree.MatrixTree(mesh, tree=kind, exact=exact, backend=backend, device=device,
+                                         threads=threads)
             stats, kernels = [], []
             for _ in range(repeats):
                 tree.build()
@@ -110,7 +111,7 @@ def run_scene(path: str, repeats: int, peers: bool, backends=("cpu",), device=No
                 "phases_ms": phases, "bytes": s["bytes"], "bytes_per_tri": s["bytes"] / n,
                 "level_bytes": s["level_bytes"], "level_blocks": s["level_blocks"],
                 "node_visits_per_ray": q["node_visits"] / len(o), "tri_tests_per_ray": q["triangle_tests"] / len(o),
-                "threads": os.cpu_count(),
+                "threads": threads or os.cpu_count(),
             }
             if backend == "cpu":
                 refs[kind, exact] = tree
@@ -138,6 +139,8 @@ def main() -> int:
     p.add_argument("--no-peers", action="store_true", help="skip VTK's locators")
     p.add_argument("--backend", choices=("cpu", "opencl", "all"), default="cpu",
                    help="build on the OpenMP engine, with the OpenCL kernels, or both (default cpu)")
+    p.add_argument("--threads", type=int, default=0,
+                   help="OpenMP threads of the CPU builds (default 0 = all; 1 gives stable times on a busy machine)")
     p.add_argument("--device", default=None, help="OpenCL device: 'P:D', a number, or part of its name")
     a = p.parse_args()
     backends = ("cpu", "opencl") if a.backend == "all" else (a.backend,)
@@ -151,7 +154,7 @@ def main() -> int:
     except ImportError:
         it = paths
     for path in it:
-        rows += run_scene(path, a.repeats, not a.no_peers, backends, a.device)
+        rows += run_scene(path, a.repeats, not a.no_peers, backends, a.device, a.threads)
     phase_names = list(next(r for r in rows if "phases_ms" in r)["phases_ms"])
     flat = []
     for r in rows:
