@@ -75,34 +75,6 @@ bool MatrixTree::leafCoords(Vec3 p, int L[3]) const {
   return true;
 }
 
-NodeRef MatrixTree::locate(const int L[3], int lo, int hi, TraversalStats* st) const {
-  NodeRef r;
-  const int H = height_;
-  if (hi > H) {
-    if (st) ++st->nodeVisits;
-    if (nodeExists(H, L)) {
-      r.level = H;
-      for (int a = 0; a < 3; ++a) r.c[a] = L[a];
-      r.exists = true;
-      return r;
-    }
-    hi = H;
-  }
-  // Invariant: the ancestor at `lo` exists, the ancestor at `hi` does not.
-  int c[3];
-  while (hi - lo > 1) {
-    const int mid = (lo + hi) / 2;
-    ancestor(L, mid, c);
-    if (st) ++st->nodeVisits;
-    if (nodeExists(mid, c)) lo = mid;
-    else hi = mid;
-  }
-  r.level = hi;
-  ancestor(L, hi, r.c);
-  r.exists = false;
-  return r;
-}
-
 NodeRef MatrixTree::leafFind(Vec3 p, TraversalStats* st) const {
   int L[3];
   if (!leafCoords(p, L)) return NodeRef{};
@@ -124,27 +96,6 @@ NodeRef MatrixTree::leafFindTopDown(Vec3 p) const {
   ancestor(L, height_, r.c);
   r.exists = true;
   return r;
-}
-
-NodeRef MatrixTree::neighbourFind(const NodeRef& n, int axis, int dir, const int L[3],
-                                  TraversalStats* st) const {
-  int c[3] = {n.c[0], n.c[1], n.c[2]};
-  c[axis] += dir;
-  if (c[axis] < 0 || c[axis] >= dim(n.level, axis)) return NodeRef{};
-  // The same-size node across the face brackets the search: if it exists, the answer is at or
-  // below its level; if not, above it.
-  if (st) ++st->nodeVisits;
-  if (nodeExists(n.level, c)) {
-    if (n.level == height_) {
-      NodeRef r;
-      r.level = height_;
-      for (int a = 0; a < 3; ++a) r.c[a] = L[a];
-      r.exists = true;
-      return r;
-    }
-    return locate(L, n.level, height_ + 1, st);
-  }
-  return locate(L, 0, n.level, st);
 }
 
 Box MatrixTree::nodeBox(int level, const int c[3]) const {

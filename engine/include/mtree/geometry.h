@@ -8,6 +8,14 @@
 #include <cstdint>
 #include <limits>
 
+// Forced inlining for the few small functions of the ray loops (GCC otherwise keeps the
+// triangle tests out of line in the traversal lambdas: a call per triangle).
+#if defined(__GNUC__) || defined(__clang__)
+#define MT_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define MT_ALWAYS_INLINE inline
+#endif
+
 namespace mtree {
 
 struct Vec3 {
@@ -108,7 +116,7 @@ bool convexOverlapsBox(const Vec3* pts, int n, const Vec3* faceNormals, int nf, 
 /// Möller–Trumbore ray/triangle test (1997). Returns true and t, u, v if the ray hits the
 /// triangle with t in [tmin, tmax]. Edges are shared by neighbours up to round-off only: use
 /// the watertight test where a hole in a closed mesh matters.
-inline bool rayTriangleMT(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, double tmin, double tmax,
+MT_ALWAYS_INLINE bool rayTriangleMT(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, double tmin, double tmax,
                           double& t, double& u, double& v) {
   const Vec3 e1 = b - a, e2 = c - a;
   const Vec3 p = cross(d, e2);

@@ -36,7 +36,7 @@ inline const char* triangleTestName(TriangleTest t) {
 /// Watertightness needs the two products of an edge function to be rounded separately (no fused
 /// multiply-add): the engine builds with -std=c++17, where GCC and Clang do not contract across
 /// statements or expressions unless asked to (-ffp-contract=fast).
-inline bool rayTriangleWatertight(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, double tmin, double tmax,
+MT_ALWAYS_INLINE bool rayTriangleWatertight(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, double tmin, double tmax,
                                   double& t, double& u, double& v) {
   // kz: the axis of the largest |d| component; kx, ky the other two, swapped when d[kz] < 0 so
   // that the triangle's winding (the sign of the edge functions) is preserved.
@@ -91,7 +91,7 @@ inline bool rayTriangle(TriangleTest test, Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 
 
 /// Compile-time choice, for inner loops templated on the test.
 template <TriangleTest Test>
-inline bool rayTriangleT(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, double tmin, double tmax, double& t, double& u,
+MT_ALWAYS_INLINE bool rayTriangleT(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, double tmin, double tmax, double& t, double& u,
                          double& v) {
   if constexpr (Test == TriangleTest::Watertight)
     return rayTriangleWatertight(o, d, a, b, c, tmin, tmax, t, u, v);

@@ -77,6 +77,7 @@ struct NodeRef {
   int level = -1;
   int c[3] = {0, 0, 0};
   bool exists = false;  // true only for an existing bottom-level node (a leaf with primitives)
+  MtLeafRange range{MT_NULL, MT_NULL};  // the leaf's primitives when exists (read once, kept)
 };
 
 class MatrixTree {
@@ -138,6 +139,13 @@ class MatrixTree {
   Box nodeBox(int level, const int c[3]) const;
   /// Primitive range of an existing leaf.
   MtLeafRange leafRange(const NodeRef& n) const { return leaves_.get(n.c[0], n.c[1], n.c[2]); }
+  /// The leaf at bottom-level cell L if it exists (its range in r), one block-sparse access.
+  bool leafAt(const int L[3], MtLeafRange& r) const {
+    const MtLeafRange* p = leaves_.find(L[0], L[1], L[2]);
+    if (!p || p->begin == MT_NULL) return false;
+    r = *p;
+    return true;
+  }
 
   /// Walks the ray o + t d, t in [tmin, tmax], front to back through the leaves and empty nodes
   /// it crosses, stepping from node to neighbour (no stack, no restart). For every existing leaf
@@ -182,6 +190,14 @@ inline int cellIndex(double x, int lo, int hi) {
   return static_cast<int>(f);
 }
 
+/// cellIndex for 0 <= lo <= hi: truncation is floor there, and needs no libm call (std::floor is
+/// one without SSE4.1, which a portable build does not assume).
+inline int cellIndexNonNegative(double x, int lo, int hi) {
+  if (!(x >= lo)) return lo;  // also catches NaN
+  if (x >= hi) return hi;
+  return static_cast<int>(x);
+}
+
 /// Computes the per-level logDims of a tree of `kind` over a root box of extent `e`, `height` levels
 /// below the root.
 std::vector<std::array<int, 3>> levelShapes(TreeKind kind, Vec3 e, int height);
@@ -190,6 +206,76 @@ std::vector<std::array<int, 3>> levelShapes(TreeKind kind, Vec3 e, int height);
 /// leafScale x medianExtent, capped so that the leaf level's pointer matrix (for blocks of
 /// edge blockEdge) has at most 2^24 cells and no axis more than 2^30 nodes.
 int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double leafScale, int blockEdge);
+
+// ---------------------------------------------------------------------------------------------
+// Leaf and neighbour finding: inline, they run once per step of every ray.
+inline NodeRef MatrixTree::locate(const int L[3], int lo, int hi, TraversalStats* st) const {
+  NodeRef r;
+  const int H = height_;
+  if (hi > H) {
+    if (st) ++st->nodeVisits;
+    if (leafAt(L, r.range)) {
+      r.level = H;
+      for (int a = 0; a < 3; ++a) r.c[a] = L[a];
+      r.exists = true;
+      return r;
+    }
+    hi = H;
+  }
+  // Invariant: the ancestor at `lo` exists, the ancestor at `hi` does not.
+  int c[3];
+  while (hi - lo > 1) {
+    const int mid = (lo + hi) / 2;
+    ancestor(L, mid, c);
+    if (st) ++st->nodeVisits;
+    if (nodeExists(mid, c)) lo = mid;
+    else hi = mid;
+  }
+  r.level = hi;
+  ancestor(L, hi, r.c);
+  r.exists = false;
+  return r;
+}
+
+inline NodeRef MatrixTree::neighbourFind(const NodeRef& n, int axis, int dir, const int L[3],
+                                  TraversalStats* st) const {
+  int c[3] = {n.c[0], n.c[1], n.c[2]};
+  c[axis] += dir;
+  if (c[axis] < 0 || c[axis] >= dim(n.level, axis)) return NodeRef{};
+  // The same-size node across the face brackets the search: if it exists, the answer is at or
+  // below its level; if not, above it.
+  if (st) ++st->nodeVisits;
+  if (n.level == height_) {
+    NodeRef r;
+    if (leafAt(L, r.range)) {  // L is that same-size node: the next leaf, one access
+      r.level = height_;
+      for (int a = 0; a < 3; ++a) r.c[a] = L[a];
+      r.exists = true;
+      return r;
+    }
+  } else if (nodeExists(n.level, c)) {
+    return locate(L, n.level, height_ + 1, st);
+  }
+  // Absent: the answer is the empty child of the deepest existing ancestor of L above n.level.
+  // Search up from the bracket with doubling steps (a gallop, then a binary search inside the
+  // last step): the common case, a neighbour under the same parent, costs one access instead of
+  // log2(level), and the worst case stays O(log h).
+  int hi = n.level, step = 1;
+  int lo = 0;
+  int a[3];
+  while (hi - step > 0) {
+    const int probe = hi - step;
+    ancestor(L, probe, a);
+    if (st) ++st->nodeVisits;
+    if (nodeExists(probe, a)) {
+      lo = probe;
+      break;
+    }
+    hi = probe;
+    step *= 2;
+  }
+  return locate(L, lo, hi, st);
+}
 
 // ---------------------------------------------------------------------------------------------
 template <class LeafFn>
@@ -209,6 +295,16 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
   }
   NodeRef n = locate(L, 0, H + 1, st);
   double tEnter = t0;
+  // Per axis: the reciprocal direction (no division per step) and which face the ray leaves by.
+  double inv[3];
+  int up[3];
+  bool moves[3];
+  for (int a = 0; a < 3; ++a) {
+    moves[a] = d[a] != 0;
+    inv[a] = moves[a] ? 1.0 / d[a] : 0.0;
+    if (!(std::fabs(inv[a]) < std::numeric_limits<double>::infinity())) moves[a] = false, inv[a] = 0.0;
+    up[a] = d[a] > 0 ? 1 : 0;
+  }
   const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
   for (int step = 0; step < maxSteps; ++step) {
     if (st) ++st->cells;
@@ -216,18 +312,13 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
     double tExit = t1;
     int exitAxis = -1;
     for (int a = 0; a < 3; ++a) {
-      if (d[a] > 0) {
-        const double t = ((n.c[a] + 1) * cs[a] - ol[a]) / d[a];
-        if (t < tExit) { tExit = t; exitAxis = a; }
-      } else if (d[a] < 0) {
-        const double t = (n.c[a] * cs[a] - ol[a]) / d[a];
-        if (t < tExit) { tExit = t; exitAxis = a; }
-      }
+      if (!moves[a]) continue;
+      const double t = ((n.c[a] + up[a]) * cs[a] - ol[a]) * inv[a];
+      if (t < tExit) { tExit = t; exitAxis = a; }
     }
     tExit = std::max(tExit, tEnter);
     if (n.exists) {
-      const MtLeafRange r = leaves_.get(n.c[0], n.c[1], n.c[2]);
-      if (fn(prims_.data() + r.begin, r.end - r.begin, tEnter, tExit)) return;
+      if (fn(prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit)) return;
     }
     if (exitAxis < 0) return;  // the ray interval ends inside this node
     // Bottom-level cell just across the exit face: exact integer step on the exit axis, the
@@ -240,7 +331,7 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
       if (a == exitAxis) continue;
       const int s = logDims_[H][a] - logDims_[n.level][a];
       const int lo = n.c[a] << s, hi = ((n.c[a] + 1) << s) - 1;
-      L[a] = cellIndex((ol[a] + d[a] * tExit) * invLeaf_[a], lo, hi);
+      L[a] = cellIndexNonNegative((ol[a] + d[a] * tExit) * invLeaf_[a], lo, hi);
     }
     n = neighbourFind(n, exitAxis, dir, L, st);
     if (n.level < 0) return;

@@ -3,10 +3,29 @@
 // broken by the smaller triangle id, in both, so answers are comparable exactly.
 #pragma once
 
+#include "mtree/intersect.h"
 #include "mtree/matrix_tree.h"
 #include "mtree/primitives.h"
 
 namespace mtree {
+
+/// A per-ray mailbox (Amanatides & Woo 1987; Havran's thesis): a triangle referenced by several
+/// leaves along the ray is tested once. Direct mapped, 16 slots: a slot holds the last id tested
+/// that maps to it. Exact: a second test of the same triangle by the same ray gives the same
+/// answer (first hit: the interval [tmin, best t] only shrinks; any hit: it already failed).
+struct RayMailbox {
+  uint32_t slot[16];
+  RayMailbox() {
+    for (uint32_t& s : slot) s = MT_NULL;
+  }
+  /// True if `id` was tested already; otherwise records it.
+  bool seen(uint32_t id) {
+    uint32_t& s = slot[id & 15u];
+    if (s == id) return true;
+    s = id;
+    return false;
+  }
+};
 
 struct RayHit {
   double t = std::numeric_limits<double>::infinity();
@@ -15,21 +34,25 @@ struct RayHit {
   bool hit() const { return prim != MT_NULL; }
 };
 
-/// Closest hit with t in [tmin, tmax]. Returns whether anything was hit.
+/// Closest hit with t in [tmin, tmax]. Returns whether anything was hit. `Test` picks the
+/// ray/triangle test (intersect.h); the default is the engine's Moller-Trumbore.
+template <TriangleTest Test = TriangleTest::MollerTrumbore>
 inline bool intersectFirst(const MatrixTree& tree, const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin,
                            double tmax, RayHit& hit, TraversalStats* st = nullptr) {
   hit = RayHit{};
   hit.t = tmax;
   uint64_t tests = 0;
+  RayMailbox mb;
   tree.traverseRay(
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double /*tEnter*/, double tExit) {
         for (uint32_t k = 0; k < count; ++k) {
           const uint32_t id = prims[k];
+          if (mb.seen(id)) continue;
           double t, u, v;
           ++tests;
-          if (rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t, t,
-                            u, v)) {
+          if (rayTriangleT<Test>(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t,
+                                 t, u, v)) {
             if (t < hit.t || (t == hit.t && id < hit.prim)) {
               hit.t = t;
               hit.prim = id;
@@ -48,19 +71,22 @@ inline bool intersectFirst(const MatrixTree& tree, const TriangleMesh& mesh, Vec
 }
 
 /// Any hit with t in [tmin, tmax] (shadow rays): stops at the first one found.
+template <TriangleTest Test = TriangleTest::MollerTrumbore>
 inline bool intersectAny(const MatrixTree& tree, const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin,
                          double tmax, TraversalStats* st = nullptr) {
   bool found = false;
   uint64_t tests = 0;
+  RayMailbox mb;
   tree.traverseRay(
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double, double) {
         for (uint32_t k = 0; k < count; ++k) {
           const uint32_t id = prims[k];
+          if (mb.seen(id)) continue;
           double t, u, v;
           ++tests;
-          if (rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax, t, u,
-                            v)) {
+          if (rayTriangleT<Test>(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax,
+                                 t, u, v)) {
             found = true;
             return true;
           }
