@@ -45,15 +45,43 @@ struct RenderResult {
   double ms = 0;
 };
 
-/// The matrix-tree tracer over a triangle mesh.
+/// The primary rays of a pinhole camera: pixel (x, y) (y = 0 at the bottom) looks along
+/// direction(x, y) from cam.eye, through the pixel's centre. Shared by render() and by anything
+/// that must reproduce its rays (the benchmark's brute-force check, other ray tracers).
+struct PinholeRays {
+  Vec3 eye, fwd, right, up;
+  double th = 0, aspect = 1;
+  int width = 0, height = 0;
+  explicit PinholeRays(const Camera& cam) : eye(cam.eye), width(cam.width), height(cam.height) {
+    fwd = normalized(cam.target - cam.eye);
+    right = cross(fwd, cam.up);
+    if (norm(right) == 0) right = cross(fwd, std::fabs(fwd.y) < 0.9 ? Vec3(0, 1, 0) : Vec3(1, 0, 0));
+    right = normalized(right);
+    up = cross(right, fwd);
+    th = std::tan(0.5 * cam.fovyDegrees * M_PI / 180.0);
+    aspect = height > 0 ? double(width) / height : 1.0;
+  }
+  Vec3 direction(int x, int y) const {
+    const double sx = (2.0 * (x + 0.5) / width - 1.0) * th * aspect;
+    const double sy = (2.0 * (y + 0.5) / height - 1.0) * th;
+    return normalized(fwd + right * sx + up * sy);
+  }
+};
+
+/// The matrix-tree tracer over a triangle mesh, with a choice of ray/triangle test.
 struct MatrixTreeTracer {
   const MatrixTree& tree;
   const TriangleMesh& mesh;
+  TriangleTest test = TriangleTest::MollerTrumbore;
   bool first(Vec3 o, Vec3 d, double tmin, double tmax, RayHit& h, TraversalStats* st) const {
-    return intersectFirst(tree, mesh, o, d, tmin, tmax, h, st);
+    return test == TriangleTest::Watertight
+               ? intersectFirst<TriangleTest::Watertight>(tree, mesh, o, d, tmin, tmax, h, st)
+               : intersectFirst<TriangleTest::MollerTrumbore>(tree, mesh, o, d, tmin, tmax, h, st);
   }
   bool any(Vec3 o, Vec3 d, double tmin, double tmax, TraversalStats* st) const {
-    return intersectAny(tree, mesh, o, d, tmin, tmax, st);
+    return test == TriangleTest::Watertight
+               ? intersectAny<TriangleTest::Watertight>(tree, mesh, o, d, tmin, tmax, st)
+               : intersectAny<TriangleTest::MollerTrumbore>(tree, mesh, o, d, tmin, tmax, st);
   }
 };
 
@@ -73,13 +101,8 @@ RenderResult render(const Tracer& tracer, const TriangleMesh& mesh, const Box& s
   r.depth.assign(npix, std::numeric_limits<float>::infinity());
   r.hitPrim.assign(npix, MT_NULL);
 
-  const Vec3 fwd = normalized(cam.target - cam.eye);
-  Vec3 right = cross(fwd, cam.up);
-  if (norm(right) == 0) right = cross(fwd, std::fabs(fwd.y) < 0.9 ? Vec3(0, 1, 0) : Vec3(1, 0, 0));
-  right = normalized(right);
-  const Vec3 up = cross(right, fwd);
-  const double th = std::tan(0.5 * cam.fovyDegrees * M_PI / 180.0);
-  const double aspect = double(W) / Hh;
+  const PinholeRays rays(cam);
+  const Vec3 right = rays.right, up = rays.up;
   const double diag = sceneBox.empty() ? 1.0 : std::max(norm(sceneBox.extent()), 1e-300);
   const double eps = 1e-7 * diag + 1e-9 * norm(sceneBox.center());
   const Vec3 light = opt.lightFromCamera ? cam.eye + up * (0.5 * diag) + right * (0.3 * diag) : opt.light;
@@ -95,9 +118,7 @@ RenderResult render(const Tracer& tracer, const TriangleMesh& mesh, const Box& s
     for (int y = 0; y < Hh; ++y) {
       for (int x = 0; x < W; ++x) {
         const size_t pix = size_t(y) * W + x;
-        const double sx = (2.0 * (x + 0.5) / W - 1.0) * th * aspect;
-        const double sy = (2.0 * (y + 0.5) / Hh - 1.0) * th;
-        const Vec3 d = normalized(fwd + right * sx + up * sy);
+        const Vec3 d = rays.direction(x, y);
         TraversalStats ps;
         RayHit h;
         Vec3 c = opt.background;
