@@ -78,15 +78,15 @@ fi
 venv_ready() {
   "$VPY" - "$PYVISTA_VERSION" <<'PY' 2>/dev/null
 import sys
-import meshio, pytest, tqdm, pyvista
+import meshio, pytest, tqdm, pyvista, embreex
 assert pyvista.__version__ == sys.argv[1], pyvista.__version__
 PY
 }
 
 if venv_ready; then
-  say "pip: pytest meshio tqdm pyvista==$PYVISTA_VERSION already importable"
+  say "pip: pytest meshio tqdm embreex pyvista==$PYVISTA_VERSION already importable"
 else
-  say "pip: installing pytest meshio tqdm pyvista==$PYVISTA_VERSION (without the vtk wheel)"
+  say "pip: installing pytest meshio tqdm embreex pyvista==$PYVISTA_VERSION (without the vtk wheel)"
   export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_NO_INPUT=1
   # Keep Debian's numpy: a pip numpy in .venv would shadow the one that
   # Debian's VTK (numpy_interface, numpy_support) was packaged with.
@@ -96,7 +96,7 @@ else
   # pyvista's own dependencies except `vtk` (from its wheel metadata:
   # matplotlib, numpy, pillow, pooch, scooby, typing-extensions, vtk).
   "$VPY" -m pip install -q -c "$constraints" \
-    pytest meshio tqdm \
+    pytest meshio tqdm embreex \
     'matplotlib>=3.0.1' pillow pooch 'scooby>=0.5.1' 'typing-extensions>=4.10'
   "$VPY" -m pip install -q --no-deps "pyvista==$PYVISTA_VERSION"
   venv_ready || die "pip install finished but the packages do not import"
