@@ -189,12 +189,12 @@ TEST_P(OpenCLMesh, BuildRaysAndPointsMatchTheCpuEngine) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(RealMeshes, OpenCLMesh, ::testing::ValuesIn(mtest::realMeshes()),
+INSTANTIATE_TEST_SUITE_P(opencl, OpenCLMesh, ::testing::ValuesIn(mtest::realMeshes()),
                          [](const auto& info) { return mtest::meshTag(info.param); });
 
 // Explicit heights (deep and shallow), every block edge from 1 to 32, a flat mesh: each build
 // exercises the scans over many tiles, several radix passes and the one-entry blocks.
-TEST(OpenCL, ExplicitHeightsAndBlockEdgesGiveIdenticalTrees) {
+TEST(opencl, ExplicitHeightsAndBlockEdgesGiveIdenticalTrees) {
   REQUIRE_DEVICE(ctx);
   const mtree::TriangleMesh sphere = mtest::makeIcosphere(4);
   ocl::Builder builder(ctx);
@@ -219,7 +219,7 @@ TEST(OpenCL, ExplicitHeightsAndBlockEdgesGiveIdenticalTrees) {
   }
 }
 
-TEST(OpenCL, RebuildAfterMovingPointsReusesBuffersAndMatches) {
+TEST(opencl, RebuildAfterMovingPointsReusesBuffersAndMatches) {
   REQUIRE_DEVICE(ctx);
   mtree::TriangleMesh mesh = mtest::makeIcosphere(5);
   ocl::Builder builder(ctx);
@@ -233,7 +233,7 @@ TEST(OpenCL, RebuildAfterMovingPointsReusesBuffersAndMatches) {
   }
 }
 
-TEST(OpenCL, EmptyMeshGivesAnEmptyTreeAndMisses) {
+TEST(opencl, EmptyMeshGivesAnEmptyTreeAndMisses) {
   REQUIRE_DEVICE(ctx);
   const mtree::TriangleMesh empty;
   ocl::Builder builder(ctx);
@@ -253,7 +253,7 @@ TEST(OpenCL, EmptyMeshGivesAnEmptyTreeAndMisses) {
   EXPECT_EQ(loc[0], -1);
 }
 
-TEST(OpenCL, ErrorsAreClearNotCrashes) {
+TEST(opencl, ErrorsAreClearNotCrashes) {
   REQUIRE_DEVICE(ctx);
   try {
     ocl::Context::create("no such device anywhere");
