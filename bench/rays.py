@@ -11,11 +11,15 @@ traces the same primary rays and the same kind of shadow rays as the outside ref
     .venv/bin/python bench/rays.py --scene ../shared/data/meshes/bunny.ply --json out/bunny.json
     .venv/bin/python bench/rays.py --scene ../shared/data/animated/horse_poses --frames 30
     .venv/bin/python bench/rays.py --scene ben-deformed --frames 30
+    .venv/bin/python bench/rays.py --scene bunny --backend all   # + the OpenCL device's rows
 
 ``--scene`` takes a mesh file, a folder of frames with the same connectivity (interpolated in
 time with Catmull-Rom splines to ``--frames`` frames), or ``ben-deformed`` (Utah Ben bent and
 twisted over time). Rows go to ``--json``; ``--md`` writes the markdown table, ``--chart`` the
 speed-up chart and ``--heatmaps`` the node-visit and triangle-test heat maps of the first frame.
+``--backend opencl|all`` adds (or keeps only) the matrix trees built and traced on an OpenCL device
+(``--device`` picks it): rows with ``backend`` "opencl", the device's name, and their first hits
+compared with the CPU engine's render of the same frame (``mismatches_vs_cpu``).
 """
 
 from __future__ import annotations
@@ -58,9 +62,9 @@ VIEWS = {
 DEFAULT_SCENES = ["utah_hand", "utah_ben", "bunny", "lucy", "turbineblade", "nefertiti", "horse",
                   "horse_animated", "ben_deformed"]
 
-COLS = ["scene", "triangles", "frames", "method", "traversal", "test", "build_ms", "render_ms",
+COLS = ["scene", "triangles", "frames", "method", "traversal", "test", "backend", "device", "build_ms", "render_ms",
         "mrays_per_s", "node_visits_per_ray", "tri_tests_per_ray", "speedup_vs_sah_stack",
-        "frame_speedup_vs_sah_stack", "mismatches_vs_brute_force"]
+        "frame_speedup_vs_sah_stack", "mismatches_vs_brute_force", "mismatches_vs_cpu"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -419,7 +423,9 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
         repeat = args.repeat if args.repeat else (3 if len(frames) == 1 else 1)
         cmd = [BIN, scene_bin, out_json, "--threads", str(args.threads), "--repeat", str(repeat),
                "--tests", args.tests, "--methods", args.methods, "--samples", str(args.samples),
-               "--short-stack", str(args.short_stack)]
+               "--short-stack", str(args.short_stack), "--backend", args.backend]
+        if args.device:
+            cmd += ["--device", args.device]
         if heat_out:
             cmd += ["--heatmaps", raw]
         proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -428,12 +434,15 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
         res = json.load(open(out_json))
         rows = res["rows"]
         if not args.no_embree and embree_available():
-            rows.append(run_embree(tris, frames, cam, res.get("reference", {}), args.threads or os.cpu_count()))
+            et = args.threads or os.cpu_count()
+            rows.append(dict(run_embree(tris, frames, cam, res.get("reference", {}), et), backend="cpu",
+                             device=f"host, {et} threads"))
         for r in rows:
             r.update(scene=name, triangles=int(tris.shape[0]), frames=len(frames), width=cam["width"],
                      height=cam["height"], threads=res["threads"])
             r["mrays_per_s"] = r["rays"] / r["render_ms"] / 1e3 if r["render_ms"] else None
-        ref = {r["test"]: r for r in rows if r["method"] == "sah" and r["traversal"] == "stack"}
+        ref = {r["test"]: r for r in rows if r["method"] == "sah" and r["traversal"] == "stack"
+               and r.get("backend", "cpu") == "cpu"}
         ref_any = ref.get("mt") or next(iter(ref.values()), None)
         for r in rows:
             base = ref.get(r["test"], ref_any)
@@ -465,6 +474,10 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=2000,
                     help="pixels of the first and last frame checked against the brute force")
     ap.add_argument("--no-embree", action="store_true", help="skip the Embree reference")
+    ap.add_argument("--backend", choices=("cpu", "opencl", "all"), default="cpu",
+                    help="cpu (OpenMP engine), opencl (matrix trees on the OpenCL device) or all")
+    ap.add_argument("--device", default="",
+                    help="OpenCL device selector (P:D, index or name part; default $MATRIXTREE_OPENCL_DEVICE/first)")
     ap.add_argument("--json", default=os.path.join(ROOT, "out", "bench_rays.json"))
     ap.add_argument("--md", help="write the markdown table here (e.g. docs/bench_rays.md)")
     ap.add_argument("--chart", help="write the speed-up chart here (e.g. docs/images/rays_speedup.png)")

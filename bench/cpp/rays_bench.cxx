@@ -5,7 +5,7 @@
 //
 //   rays_bench SCENE.bin OUT.json [--threads T] [--repeat R] [--tests mt,watertight]
 //              [--methods octree,kdtree,sah-restart,sah-stack,sah-shortstack] [--short-stack K]
-//              [--samples S] [--heatmaps DIR]
+//              [--samples S] [--heatmaps DIR] [--backend cpu|opencl|all] [--device SEL]
 //
 // SCENE.bin (little endian, written by bench/rays.py):
 //   char[8] "MTSCENE1"; uint32 nverts, ntris, nframes, width, height;
@@ -20,6 +20,17 @@
 // check Embree on the same rays.
 // With --heatmaps DIR the first frame's per-pixel node visits and triangle tests (uint32) and its
 // RGB image (uint8, row 0 at the bottom) are written as raw files DIR/<row name>.{visits,tests,rgb}.
+// --backend opencl (or all) adds rows with backend "opencl" for the matrix octree / kd-tree: per
+// frame the tree is built on the OpenCL device (mtree::ocl::Builder; --device picks it, see
+// ocl::Context::create), uploaded, and the frame is rendered with render()'s rays and shading but
+// traced as two device batches (all primary rays, then the shadow rays of the lit hits: the same
+// segment from p + n*eps to p + (light - p) that render() traces). build_ms counts the device
+// build and the upload; render_ms the rays, both batches and the shading (trace_ms: the batches).
+// Its first hits are compared with the CPU engine's render of the same frame, pixel by pixel
+// (same triangle, or t within 1e-6 relative; every frame with --backend all, the first and last
+// frame otherwise), and its shading (the shadow rays) by the RGB values; the device's kernels test
+// triangles with Moller-Trumbore only, so its rows are "mt". Without an OpenCL device (or an
+// engine built without OpenCL) --backend opencl|all stops with the back end's error.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -36,6 +47,7 @@
 
 #include "mtree/builder.h"
 #include "mtree/intersect.h"
+#include "mtree/opencl.h"
 #include "mtree/render.h"
 #include "mtree/sah_kdtree.h"
 
@@ -111,13 +123,16 @@ double median(std::vector<double> v) {
 
 struct Row {
   std::string method, traversal, test;
-  std::vector<double> buildMs, renderMs, renderCpuMs;
+  std::vector<double> buildMs, renderMs, renderCpuMs, buildCpuMs;
   double rays = 0, primary = 0, nodeVisits = 0, triTests = 0, leaves = 0;  // summed over frames
   uint64_t mismatches = 0, checked = 0;
   size_t bytes = 0;
   int height = 0;
   uint64_t nodes = 0, references = 0;
-  std::string name() const { return method + "-" + traversal + "-" + test; }
+  std::string backend = "cpu", device;
+  std::vector<double> uploadMs, traceMs;                      // opencl rows
+  uint64_t cpuMismatches = 0, cpuChecked = 0, shadeMismatches = 0;  // opencl rows vs the CPU render
+  std::string name() const { return method + "-" + traversal + "-" + test + (backend == "cpu" ? "" : "-" + backend); }
 };
 
 struct Sample {
@@ -164,6 +179,105 @@ uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& sampl
   return bad;
 }
 
+// render() (mtree/render.h) with the rays traced on the OpenCL device in two batches: the same
+// camera rays, light, eps offset and shading. A shadow ray is the segment render() traces, from
+// q = p + n*eps to q + (light - p): direction (light - p), t in [0, 1] (the batch kernel takes one
+// t range for all rays). nodeVisits/primTests per pixel stay 0 (the kernels give sums only).
+RenderResult renderOpenCL(ocl::Tracer& tracer, const TriangleMesh& mesh, const Box& sceneBox, const Camera& cam,
+                          const RenderOptions& opt, double* traceMs) {
+  RenderResult r;
+  const int W = cam.width, Hh = cam.height;
+  r.width = W;
+  r.height = Hh;
+  const size_t npix = size_t(W) * Hh;
+  r.rgb.assign(npix * 3, 0);
+  r.nodeVisits.assign(npix, 0);
+  r.primTests.assign(npix, 0);
+  r.depth.assign(npix, std::numeric_limits<float>::infinity());
+  r.hitPrim.assign(npix, MT_NULL);
+  const auto t0 = Clock::now();
+  const PinholeRays rays(cam);
+  const double diag = sceneBox.empty() ? 1.0 : std::max(norm(sceneBox.extent()), 1e-300);
+  const double eps = 1e-7 * diag + 1e-9 * norm(sceneBox.center());
+  const Vec3 light = opt.lightFromCamera ? cam.eye + rays.up * (0.5 * diag) + rays.right * (0.3 * diag) : opt.light;
+  std::vector<double> o(3 * npix), d(3 * npix), t(npix);
+  std::vector<uint32_t> prim(npix);
+  for (int y = 0; y < Hh; ++y)
+    for (int x = 0; x < W; ++x) {
+      const size_t pix = size_t(y) * W + x;
+      const Vec3 dir = rays.direction(x, y);
+      for (int k = 0; k < 3; ++k) {
+        o[3 * pix + k] = cam.eye[k];
+        d[3 * pix + k] = dir[k];
+      }
+    }
+  uint64_t v1 = 0, c1 = 0, v2 = 0, c2 = 0;
+  auto tb = Clock::now();
+  tracer.intersectFirst(o.data(), d.data(), npix, 0.0, std::numeric_limits<double>::infinity(), t.data(),
+                        prim.data(), &v1, &c1);
+  *traceMs = msSince(tb);
+  std::vector<double> diffuse(npix, 0.0), so, sd;
+  std::vector<size_t> shadowPix;
+  for (size_t pix = 0; pix < npix; ++pix) {
+    if (prim[pix] == MT_NULL) continue;
+    const Vec3 dir(d[3 * pix], d[3 * pix + 1], d[3 * pix + 2]);
+    const Vec3 a = mesh.vertex(prim[pix], 0), b = mesh.vertex(prim[pix], 1), cc = mesh.vertex(prim[pix], 2);
+    Vec3 n = normalized(cross(b - a, cc - a));
+    if (dot(n, dir) > 0) n = n * -1.0;
+    const Vec3 p = cam.eye + dir * t[pix];
+    const Vec3 toL = light - p;
+    const double distL = norm(toL);
+    diffuse[pix] = std::max(0.0, dot(n, toL * (1.0 / distL)));
+    if (opt.shadows && diffuse[pix] > 0) {
+      const Vec3 q = p + n * eps;
+      for (int k = 0; k < 3; ++k) {
+        so.push_back(q[k]);
+        sd.push_back(toL[k]);
+      }
+      shadowPix.push_back(pix);
+    }
+  }
+  std::vector<uint8_t> blocked(shadowPix.size(), 0);
+  tb = Clock::now();
+  if (!shadowPix.empty())
+    tracer.intersectAny(so.data(), sd.data(), shadowPix.size(), 0.0, 1.0, blocked.data(), &v2, &c2);
+  *traceMs += msSince(tb);
+  for (size_t k = 0; k < shadowPix.size(); ++k)
+    if (blocked[k]) diffuse[shadowPix[k]] = 0;
+  for (size_t pix = 0; pix < npix; ++pix) {
+    Vec3 c = opt.background;
+    if (prim[pix] != MT_NULL) {
+      ++r.hits;
+      const double s = opt.ambient + (1 - opt.ambient) * diffuse[pix];
+      c = Vec3(opt.albedo.x * s, opt.albedo.y * s, opt.albedo.z * s);
+      r.depth[pix] = static_cast<float>(t[pix]);
+      r.hitPrim[pix] = prim[pix];
+    }
+    for (int k = 0; k < 3; ++k)
+      r.rgb[pix * 3 + k] = static_cast<uint8_t>(std::min(255.0, std::max(0.0, c[k] * 255.0 + 0.5)));
+  }
+  r.ms = msSince(t0);
+  r.primaryRays = npix;
+  r.shadowRays = shadowPix.size();
+  r.stats.nodeVisits = v1 + v2;
+  r.stats.primTests = c1 + c2;
+  return r;
+}
+
+// Pixels whose first hit differs between two renders of the same frame (same triangle, or both
+// hit with t within 1e-6 relative), and pixels whose colour differs (the shadow rays).
+void compareRenders(const RenderResult& a, const RenderResult& ref, uint64_t* hitBad, uint64_t* rgbBad) {
+  for (size_t p = 0; p < ref.hitPrim.size(); ++p) {
+    if (a.hitPrim[p] != ref.hitPrim[p]) {
+      const bool both = a.hitPrim[p] != MT_NULL && ref.hitPrim[p] != MT_NULL;
+      if (!both || std::fabs(double(a.depth[p]) - double(ref.depth[p])) > 1e-6 * std::max(1.0, std::fabs(double(ref.depth[p]))))
+        ++*hitBad;
+    }
+    if (a.rgb[3 * p] != ref.rgb[3 * p] || a.rgb[3 * p + 1] != ref.rgb[3 * p + 1] || a.rgb[3 * p + 2] != ref.rgb[3 * p + 2])
+      ++*rgbBad;
+  }
+}
+
 void writeRaw(const std::string& path, const void* data, size_t bytes) {
   std::ofstream f(path, std::ios::binary);
   f.write(static_cast<const char*>(data), std::streamsize(bytes));
@@ -184,14 +298,14 @@ int run(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: rays_bench SCENE.bin OUT.json [--threads T] [--repeat R] [--tests mt,watertight]\n"
                  "       [--methods octree,kdtree,sah-restart,sah-stack,sah-shortstack] [--short-stack K]\n"
-                 "       [--samples S] [--heatmaps DIR]\n");
+                 "       [--samples S] [--heatmaps DIR] [--backend cpu|opencl|all] [--device SEL]\n");
     return 2;
   }
   const std::string scenePath = argv[1], outPath = argv[2];
   int threads = 0, repeat = 1, samples = 2000, shortStack = 3, octHeight = 0, kdHeight = 0;
   double leafScale = BuildOptions{}.leafScale, maxCandidates = BuildOptions{}.maxCandidates;
   std::string testsArg = "mt,watertight", methodsArg = "octree,kdtree,sah-restart,sah-stack,sah-shortstack";
-  std::string heatDir;
+  std::string heatDir, backend = "cpu", deviceSel;
   for (int i = 3; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -205,6 +319,8 @@ int run(int argc, char** argv) {
     else if (a == "--short-stack") shortStack = std::stoi(next());
     else if (a == "--samples") samples = std::max(0, std::stoi(next()));
     else if (a == "--heatmaps") heatDir = next();
+    else if (a == "--backend") backend = next();
+    else if (a == "--device") deviceSel = next();
     else if (a == "--octree-height") octHeight = std::stoi(next());
     else if (a == "--kdtree-height") kdHeight = std::stoi(next());
     else if (a == "--leaf-scale") leafScale = std::stod(next());
@@ -219,6 +335,22 @@ int run(int argc, char** argv) {
   if (has(testsArg, "watertight")) tests.push_back(TriangleTest::Watertight);
   if (tests.empty()) throw std::runtime_error("--tests must name mt and/or watertight");
   threads = resolveThreads(threads);
+  if (backend != "cpu" && backend != "opencl" && backend != "all")
+    throw std::runtime_error("--backend must be cpu, opencl or all");
+  const bool useCpu = backend != "opencl", useCl = backend != "cpu";
+  const std::string cpuDevice = "host, " + std::to_string(threads) + " OpenMP threads";
+  std::shared_ptr<ocl::Context> clCtx;
+  std::unique_ptr<ocl::Builder> clBuilder;
+  std::unique_ptr<ocl::Tracer> clTracer;
+  std::string clDevice;
+  bool clWarm = false;
+  if (useCl) {  // the back end's own error (no SDK at build time, no device, bad selector)
+    clCtx = ocl::Context::shared(deviceSel);
+    clDevice = clCtx->deviceLabel();
+    clBuilder = std::make_unique<ocl::Builder>(clCtx);
+    clTracer = std::make_unique<ocl::Tracer>(clCtx);
+    std::fprintf(stderr, "rays_bench: OpenCL device %s\n", clDevice.c_str());
+  }
 
   Scene sc = readScene(scenePath);
   std::fprintf(stderr, "rays_bench: %u triangles, %u frames, %dx%d, %d threads\n", sc.nt, sc.nf, sc.cam.width,
@@ -239,16 +371,28 @@ int run(int argc, char** argv) {
 
   // Rows in output order.
   std::vector<Row> rows;
-  auto rowFor = [&](const std::string& m, const std::string& t, TriangleTest test) -> Row& {
+  auto rowFor = [&](const std::string& m, const std::string& t, TriangleTest test,
+                    const std::string& be = "cpu") -> Row& {
     for (auto& r : rows)
-      if (r.method == m && r.traversal == t && r.test == testName[int(test)]) return r;
-    rows.push_back(Row{m, t, testName[int(test)], {}, {}});
+      if (r.method == m && r.traversal == t && r.test == testName[int(test)] && r.backend == be) return r;
+    Row row;
+    row.method = m;
+    row.traversal = t;
+    row.test = testName[int(test)];
+    row.backend = be;
+    row.device = be == "cpu" ? cpuDevice : clDevice;
+    rows.push_back(row);
     return rows.back();
   };
-  for (const auto& m : mtMethods)
-    for (auto t : tests) rowFor(m.name, "matrix", t);
-  for (auto tr : sahTravs)
-    for (auto t : tests) rowFor("sah", sahTraversalName(tr), t);
+  if (useCpu) {
+    for (const auto& m : mtMethods)
+      for (auto t : tests) rowFor(m.name, "matrix", t);
+    for (auto tr : sahTravs)
+      for (auto t : tests) rowFor("sah", sahTraversalName(tr), t);
+  }
+  if (useCl)
+    for (const auto& m : mtMethods) rowFor(m.name, "matrix", TriangleTest::MollerTrumbore, "opencl");
+  if (!useCpu) sahTravs.clear();
 
   std::vector<MatrixTree> mtTrees(mtMethods.size());
   SahKdTree sah;
@@ -266,8 +410,9 @@ int run(int argc, char** argv) {
       if (fi == 0) firstRef = ref;
       if (fi + 1 == sc.nf) lastRef = ref;
     }
-    auto account = [&](Row& row, const RenderResult& r, double bms, double rms, double rcpu) {
+    auto account = [&](Row& row, const RenderResult& r, double bms, double rms, double rcpu, double bcpu) {
       row.buildMs.push_back(bms);
+      row.buildCpuMs.push_back(bcpu);
       row.renderMs.push_back(rms);
       row.renderCpuMs.push_back(rcpu);
       row.rays += double(r.primaryRays + r.shadowRays);
@@ -279,7 +424,7 @@ int run(int argc, char** argv) {
         row.mismatches += countMismatches(r, ref);
         row.checked += ref.size();
       }
-      if (fi == 0 && !heatDir.empty()) {
+      if (fi == 0 && !heatDir.empty() && row.backend == "cpu") {
         const std::string base = heatDir + "/" + row.name();
         writeRaw(base + ".visits", r.nodeVisits.data(), r.nodeVisits.size() * 4);
         writeRaw(base + ".tests", r.primTests.data(), r.primTests.size() * 4);
@@ -296,13 +441,16 @@ int run(int argc, char** argv) {
       bo.maxCandidates = maxCandidates;
       std::vector<double> bt;
       BuildStats bs;
-      for (int k = 0; k < repeat; ++k) {
+      RenderResult cpuMt;  // the CPU engine's Moller-Trumbore render of this frame, for the device rows
+      bool haveCpuMt = false;
+      for (int k = 0; useCpu && k < repeat; ++k) {
         bs = BuildStats{};
         const auto t0 = Clock::now();
         MatrixTreeBuilder<TriangleMesh>::build(mesh, bo, mtTrees[mi], &bs);
         bt.push_back(msSince(t0));
       }
       for (auto test : tests) {
+        if (!useCpu) break;
         Row& row = rowFor(mtMethods[mi].name, "matrix", test);
         MatrixTreeTracer tracer{mtTrees[mi], mesh, test};
         std::vector<double> rt, ct;
@@ -313,19 +461,73 @@ int run(int argc, char** argv) {
           ct.push_back(cpuMs() - c0);
           rt.push_back(r.ms);
         }
-        account(row, r, median(bt), median(rt), median(ct));
+        account(row, r, median(bt), median(rt), median(ct), median(bc));
         row.bytes = mtTrees[mi].bytes();
         row.height = mtTrees[mi].height();
         row.references = bs.references;
         row.nodes = bs.leaves;
+        if (test == TriangleTest::MollerTrumbore) {
+          cpuMt = std::move(r);
+          haveCpuMt = true;
+        }
+      }
+      if (useCl) {
+        Row& row = rowFor(mtMethods[mi].name, "matrix", TriangleTest::MollerTrumbore, "opencl");
+        MatrixTree clTree;
+        BuildStats cbs;
+        std::vector<double> cbt, cut, crt, ctt, cct;
+        if (!clWarm) {  // untimed: the first use compiles the kernels (seconds on PoCL)
+          double tms = 0;
+          clBuilder->build(mesh, bo, clTree);
+          clTracer->upload(clTree, mesh);
+          renderOpenCL(*clTracer, mesh, box, sc.cam, ropt, &tms);
+          clWarm = true;
+        }
+        for (int k = 0; k < repeat; ++k) {
+          cbs = BuildStats{};
+          auto t0 = Clock::now();
+          clBuilder->build(mesh, bo, clTree, &cbs);
+          const double b = msSince(t0);
+          t0 = Clock::now();
+          clTracer->upload(clTree, mesh);
+          cut.push_back(msSince(t0));
+          cbt.push_back(b + cut.back());
+        }
+        RenderResult r;
+        for (int k = 0; k < repeat; ++k) {
+          double tms = 0;
+          const double c0 = cpuMs();
+          r = renderOpenCL(*clTracer, mesh, box, sc.cam, ropt, &tms);
+          cct.push_back(cpuMs() - c0);
+          crt.push_back(r.ms);
+          ctt.push_back(tms);
+        }
+        account(row, r, median(cbt), median(crt), median(cct));
+        row.uploadMs.push_back(median(cut));
+        row.traceMs.push_back(median(ctt));
+        row.bytes = clTree.bytes();
+        row.height = clTree.height();
+        row.references = cbs.references;
+        row.nodes = cbs.leaves;
+        if (!haveCpuMt && check) {  // --backend opencl: the CPU engine's render, untimed
+          MatrixTreeBuilder<TriangleMesh>::build(mesh, bo, mtTrees[mi], nullptr);
+          cpuMt = render(MatrixTreeTracer{mtTrees[mi], mesh, TriangleTest::MollerTrumbore}, mesh, box, sc.cam, ropt);
+          haveCpuMt = true;
+        }
+        if (haveCpuMt) {
+          compareRenders(r, cpuMt, &row.cpuMismatches, &row.shadeMismatches);
+          row.cpuChecked += cpuMt.hitPrim.size();
+        }
       }
     }
     if (!sahTravs.empty()) {
-      std::vector<double> bt;
+      std::vector<double> bt, bc;
       for (int k = 0; k < repeat; ++k) {
+        const double c0 = cpuMs();
         const auto t0 = Clock::now();
         sah.build(mesh);
         bt.push_back(msSince(t0));
+        bc.push_back(cpuMs() - c0);
       }
       for (auto tr : sahTravs) {
         for (auto test : tests) {
@@ -339,7 +541,7 @@ int run(int argc, char** argv) {
             ct.push_back(cpuMs() - c0);
             rt.push_back(r.ms);
           }
-          account(row, r, median(bt), median(rt), median(ct));
+          account(row, r, median(bt), median(rt), median(ct), median(bc));
           row.bytes = sah.bytes();
           row.height = sah.stats().depth;
           row.references = sah.stats().references;
@@ -357,13 +559,14 @@ int run(int argc, char** argv) {
       << ",\n  \"width\": " << sc.cam.width << ",\n  \"height\": " << sc.cam.height << ",\n  \"rows\": [\n";
   for (size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];
-    double b = 0, m = 0, mc = 0;
+    double b = 0, m = 0, mc = 0, bcpu = 0;
     for (double x : r.renderCpuMs) mc += x;
+    for (double x : r.buildCpuMs) bcpu += x;
     for (double x : r.buildMs) b += x;
     for (double x : r.renderMs) m += x;
     const double nf = double(std::max<size_t>(1, r.renderMs.size()));
     out << "    {\"method\": \"" << r.method << "\", \"traversal\": \"" << r.traversal << "\", \"test\": \""
-        << r.test << "\", \"build_ms\": " << b / nf << ", \"render_ms\": " << m / nf << ", \"render_cpu_ms\": " << mc / nf
+        << r.test << "\", \"build_ms\": " << b / nf << ", \"build_cpu_ms\": " << bcpu / nf << ", \"render_ms\": " << m / nf << ", \"render_cpu_ms\": " << mc / nf
         << ", \"rays\": " << r.rays / nf << ", \"primary_rays\": " << r.primary / nf
         << ", \"node_visits_per_ray\": " << (r.rays > 0 ? r.nodeVisits / r.rays : 0)
         << ", \"tri_tests_per_ray\": " << (r.rays > 0 ? r.triTests / r.rays : 0)
@@ -371,8 +574,17 @@ int run(int argc, char** argv) {
         << ", \"mismatches_vs_brute_force\": " << r.mismatches << ", \"rays_checked\": " << r.checked
         << ", \"bytes\": " << r.bytes << ", \"height\": " << r.height << ", \"references\": " << r.references
         << ", \"nodes\": " << r.nodes << ", \"build_ms_frames\": " << jsonNumbers(r.buildMs)
-        << ", \"render_ms_frames\": " << jsonNumbers(r.renderMs) << "}" << (i + 1 < rows.size() ? "," : "")
-        << "\n";
+        << ", \"render_ms_frames\": " << jsonNumbers(r.renderMs) << ", \"backend\": \"" << r.backend
+        << "\", \"device\": \"" << r.device << "\"";
+    if (r.backend != "cpu") {
+      double u = 0, tr = 0;
+      for (double x : r.uploadMs) u += x;
+      for (double x : r.traceMs) tr += x;
+      out << ", \"upload_ms\": " << u / nf << ", \"trace_ms\": " << tr / nf
+          << ", \"mismatches_vs_cpu\": " << r.cpuMismatches << ", \"pixels_vs_cpu\": " << r.cpuChecked
+          << ", \"shading_mismatches_vs_cpu\": " << r.shadeMismatches;
+    }
+    out << "}" << (i + 1 < rows.size() ? "," : "") << "\n";
   }
   out << "  ],\n  \"reference\": {\"pixels\": [";
   for (size_t i = 0; i < firstRef.size(); ++i) out << (i ? "," : "") << firstRef[i].pixel;
