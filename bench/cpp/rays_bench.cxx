@@ -410,7 +410,7 @@ int run(int argc, char** argv) {
       if (fi == 0) firstRef = ref;
       if (fi + 1 == sc.nf) lastRef = ref;
     }
-    auto account = [&](Row& row, const RenderResult& r, double bms, double rms, double rcpu, double bcpu) {
+    auto account = [&](Row& row, const RenderResult& r, double bms, double rms, double rcpu, double bcpu = 0) {
       row.buildMs.push_back(bms);
       row.buildCpuMs.push_back(bcpu);
       row.renderMs.push_back(rms);
@@ -439,15 +439,17 @@ int run(int argc, char** argv) {
       bo.height = bo.kind == TreeKind::Octree ? octHeight : kdHeight;
       bo.leafScale = leafScale;
       bo.maxCandidates = maxCandidates;
-      std::vector<double> bt;
+      std::vector<double> bt, bc;
       BuildStats bs;
       RenderResult cpuMt;  // the CPU engine's Moller-Trumbore render of this frame, for the device rows
       bool haveCpuMt = false;
       for (int k = 0; useCpu && k < repeat; ++k) {
         bs = BuildStats{};
+        const double c0 = cpuMs();
         const auto t0 = Clock::now();
         MatrixTreeBuilder<TriangleMesh>::build(mesh, bo, mtTrees[mi], &bs);
         bt.push_back(msSince(t0));
+        bc.push_back(cpuMs() - c0);
       }
       for (auto test : tests) {
         if (!useCpu) break;
