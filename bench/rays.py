@@ -63,7 +63,7 @@ DEFAULT_SCENES = ["utah_hand", "utah_ben", "bunny", "lucy", "turbineblade", "nef
                   "horse_animated", "ben_deformed"]
 
 COLS = ["scene", "triangles", "frames", "method", "traversal", "test", "backend", "device", "build_ms", "render_ms",
-        "mrays_per_s", "node_visits_per_ray", "tri_tests_per_ray", "speedup_vs_sah_stack",
+        "build_cpu_ms", "render_cpu_ms", "mrays_per_s", "node_visits_per_ray", "tri_tests_per_ray", "speedup_vs_sah_stack",
         "frame_speedup_vs_sah_stack", "mismatches_vs_brute_force", "mismatches_vs_cpu"]
 
 
@@ -269,18 +269,20 @@ def run_embree(tris: np.ndarray, frames: list, cam: dict, reference: dict, threa
     o32 = np.broadcast_to(cam["eye"].astype(np.float32), d32.shape).copy()
     faces = tris.astype(np.int32)
     builds, renders, rays, mism = [], [], [], 0
+    builds_cpu, renders_cpu = [], []
     for fi, pts in enumerate(frames):
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         diag = max(np.linalg.norm(hi - lo), 1e-300)
         eps = 1e-7 * diag + 1e-9 * np.linalg.norm(0.5 * (lo + hi))
         light = cam["eye"] + up * (0.5 * diag) + right * (0.3 * diag)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         scene = rtcs.EmbreeScene()
         TriangleMesh(scene, pts.astype(np.float32), faces)
         scene.run(o32[:1], d32[:1])  # the BVH is built at the first query (rtcCommitScene)
         builds.append(1e3 * (time.perf_counter() - t0))
+        builds_cpu.append(1e3 * (time.process_time() - c0))
 
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         res = _embree_run(scene, o32, d32, output=1, threads=threads)
         prim = res["primID"]
         hit = prim >= 0
@@ -300,6 +302,7 @@ def run_embree(tris: np.ndarray, frames: list, cam: dict, reference: dict, threa
         occl = _embree_run(scene, so, sd, dists=dist_l[lit].astype(np.float32), query="OCCLUDED",
                            threads=threads)
         renders.append(1e3 * (time.perf_counter() - t0))
+        renders_cpu.append(1e3 * (time.process_time() - c0))
         rays.append(len(d32) + len(so))
         del occl
         if fi == 0 and reference and reference.get("pixels"):
@@ -314,6 +317,7 @@ def run_embree(tris: np.ndarray, frames: list, cam: dict, reference: dict, threa
             mism = int(np.sum(~(same | tie)))
     return {"method": "embree", "traversal": "bvh", "test": "embree-float",
             "build_ms": float(np.mean(builds)), "render_ms": float(np.mean(renders)),
+            "build_cpu_ms": float(np.mean(builds_cpu)), "render_cpu_ms": float(np.mean(renders_cpu)),
             "rays": float(np.mean(rays)), "node_visits_per_ray": None, "tri_tests_per_ray": None,
             "mismatches_vs_brute_force": mism, "rays_checked": len(reference.get("pixels", [])),
             "build_ms_frames": builds, "render_ms_frames": renders, "embree_threads": threads}
@@ -370,6 +374,46 @@ def write_heatmaps(name: str, cam: dict, raw_dir: str, out_dir: str, rows: list)
     return [path]
 
 
+SUMMARY_COLS = ["scene", "triangles", "frames", "octree_render_x", "kdtree_render_x", "shortstack_render_x",
+                "restart_render_x", "embree_render_x", "octree_frame_x", "kdtree_frame_x", "embree_frame_x",
+                "visits_octree", "visits_sah", "tests_octree", "tests_sah", "mismatches"]
+
+
+def summary_rows(rows: list) -> list:
+    """One row per scene: speed-ups over the SAH kd-tree with a stack (Moller-Trumbore rows, CPU
+    back end), render only (_render_x) and build + render per frame (_frame_x), and the work per
+    ray of the matrix octree and the SAH tree."""
+    out = []
+    scenes_seen = []
+    for r in rows:
+        if r["scene"] not in scenes_seen:
+            scenes_seen.append(r["scene"])
+    for sc in scenes_seen:
+        rs = [r for r in rows if r["scene"] == sc and r.get("backend", "cpu") == "cpu"
+              and r["test"] in ("mt", "embree-float")]
+
+        def get(m, t, k):
+            v = [r.get(k) for r in rs if r["method"] == m and r["traversal"] == t]
+            return round(v[0], 2) if v and v[0] is not None else None
+
+        out.append({"scene": sc, "triangles": rs[0]["triangles"], "frames": rs[0]["frames"],
+                    "octree_render_x": get("matrix-octree", "matrix", "speedup_vs_sah_stack"),
+                    "kdtree_render_x": get("matrix-kdtree", "matrix", "speedup_vs_sah_stack"),
+                    "shortstack_render_x": get("sah", "shortstack", "speedup_vs_sah_stack"),
+                    "restart_render_x": get("sah", "restart", "speedup_vs_sah_stack"),
+                    "embree_render_x": get("embree", "bvh", "speedup_vs_sah_stack"),
+                    "octree_frame_x": get("matrix-octree", "matrix", "frame_speedup_vs_sah_stack"),
+                    "kdtree_frame_x": get("matrix-kdtree", "matrix", "frame_speedup_vs_sah_stack"),
+                    "embree_frame_x": get("embree", "bvh", "frame_speedup_vs_sah_stack"),
+                    "visits_octree": get("matrix-octree", "matrix", "node_visits_per_ray"),
+                    "visits_sah": get("sah", "stack", "node_visits_per_ray"),
+                    "tests_octree": get("matrix-octree", "matrix", "tri_tests_per_ray"),
+                    "tests_sah": get("sah", "stack", "tri_tests_per_ray"),
+                    "mismatches": sum(int(r.get("mismatches_vs_brute_force") or 0) for r in rows
+                                      if r["scene"] == sc)})
+    return out
+
+
 def write_chart(rows: list, path: str) -> str:
     import matplotlib
 
@@ -423,7 +467,8 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
         repeat = args.repeat if args.repeat else (3 if len(frames) == 1 else 1)
         cmd = [BIN, scene_bin, out_json, "--threads", str(args.threads), "--repeat", str(repeat),
                "--tests", args.tests, "--methods", args.methods, "--samples", str(args.samples),
-               "--short-stack", str(args.short_stack), "--backend", args.backend]
+               "--short-stack", str(args.short_stack), "--backend", args.backend,
+               "--leaf-scale", str(args.leaf_scale)]
         if args.device:
             cmd += ["--device", args.device]
         if heat_out:
@@ -444,12 +489,15 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
         ref = {r["test"]: r for r in rows if r["method"] == "sah" and r["traversal"] == "stack"
                and r.get("backend", "cpu") == "cpu"}
         ref_any = ref.get("mt") or next(iter(ref.values()), None)
+        # Ratios from wall-clock times, or (--clock cpu) from CPU times: with --threads 1 on a
+        # machine other processes share, CPU time leaves out the time the process waited.
+        bk, rk = ("build_cpu_ms", "render_cpu_ms") if args.clock == "cpu" else ("build_ms", "render_ms")
         for r in rows:
             base = ref.get(r["test"], ref_any)
-            if base:
-                r["speedup_vs_sah_stack"] = base["render_ms"] / r["render_ms"]
-                r["frame_speedup_vs_sah_stack"] = ((base["build_ms"] + base["render_ms"])
-                                                   / (r["build_ms"] + r["render_ms"]))
+            if base and r.get(rk) and r.get(bk) is not None:
+                r["speedup_vs_sah_stack"] = base[rk] / r[rk]
+                r["frame_speedup_vs_sah_stack"] = (base[bk] + base[rk]) / (r[bk] + r[rk])
+            r["clock"] = args.clock
         if heat_out:
             r_pics = write_heatmaps(name, cam, raw, heat_out, rows)
             for p in r_pics:
@@ -474,6 +522,13 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=2000,
                     help="pixels of the first and last frame checked against the brute force")
     ap.add_argument("--no-embree", action="store_true", help="skip the Embree reference")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="times the speed-up columns use: wall clock (default) or process CPU time "
+                         "(use with --threads 1 on a shared machine)")
+    ap.add_argument("--leaf-scale", type=float, default=1.0,
+                    help="matrix trees: leaf extent as a multiple of the median triangle extent "
+                         "(the automatic height rule; default 1.0, the rendering setting: the engine's "
+                         "default 2.0 favours build time)")
     ap.add_argument("--backend", choices=("cpu", "opencl", "all"), default="cpu",
                     help="cpu (OpenMP engine), opencl (matrix trees on the OpenCL device) or all")
     ap.add_argument("--device", default="",
@@ -505,9 +560,16 @@ def main(argv=None) -> int:
         json.dump(payload, f, indent=1)
     shown = [dict(r, **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()}) for r in rows]
     print(table(shown, COLS))
+    summ = summary_rows(rows)
+    print("\nSpeed-ups over the SAH kd-tree with a stack (x, > 1 = faster), Moller-Trumbore rows, "
+          f"{args.clock} clock:")
+    print(table(summ, SUMMARY_COLS))
     print(f"wrote {os.path.relpath(args.json)}")
     if args.md:
         with open(args.md, "w") as f:
+            f.write(f"Command: `{payload['command']}`\n\n")
+            f.write(f"Speed-ups over the SAH kd-tree with a stack ({args.clock} clock):\n\n")
+            f.write(markdown(summ, SUMMARY_COLS) + "\n\nEvery row:\n\n")
             f.write(markdown(shown, COLS) + "\n")
         print(f"wrote {os.path.relpath(args.md)}")
     if args.chart:
