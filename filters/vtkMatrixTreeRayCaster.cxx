@@ -17,11 +17,25 @@
 
 #include "mtree/opencl.h"
 #include "mtree/render.h"
+#include "mtree/sah_kdtree.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <string>
 #include <vector>
+
+// The SAH kd-tree accelerator's state: its own copy of the triangles (the matrix tree's copy is
+// filled only when that tree is built) and the tree, rebuilt when the input changes.
+struct vtkMatrixTreeRayCaster::SahState
+{
+  mtree::TriangleMesh Mesh;
+  std::vector<vtkIdType> CellOfTriangle;
+  mtree::SahKdTree Tree;
+  vtkPolyData* Input = nullptr; // identity only, never dereferenced
+  vtkMTimeType BuiltAt = 0;
+  bool Valid = false;
+};
 
 namespace
 {
@@ -137,6 +151,7 @@ vtkStandardNewMacro(vtkMatrixTreeRayCaster);
 //------------------------------------------------------------------------------
 vtkMatrixTreeRayCaster::vtkMatrixTreeRayCaster()
   : Tree(vtkMatrixTree::New())
+  , Sah(new SahState)
 {
   this->SetNumberOfInputPorts(1);
   this->SetNumberOfOutputPorts(1);
@@ -144,6 +159,7 @@ vtkMatrixTreeRayCaster::vtkMatrixTreeRayCaster()
 
 vtkMatrixTreeRayCaster::~vtkMatrixTreeRayCaster()
 {
+  delete this->Sah;
   this->Tree->Delete();
 }
 
@@ -188,27 +204,70 @@ int vtkMatrixTreeRayCaster::RequestData(
   output->SetOrigin(0, 0, 0);
   output->SetSpacing(1, 1, 1);
 
-  // Build (or reuse) the tree.
+  // Build (or reuse) the accelerator.
   this->UpdateProgress(0.0);
-  if (this->Tree->GetDataSet() != input)
+  const bool useSah = this->Accelerator == SAH_KDTREE;
+  if (useSah)
   {
-    this->Tree->SetDataSet(input);
+    if (this->Tree->GetBackend() != 0)
+    {
+      vtkErrorMacro("RequestData: the SAH kd-tree runs on the CPU only; set the backend to cpu.");
+      return 0;
+    }
+    SahState& s = *this->Sah;
+    if (s.Input != input || s.BuiltAt < input->GetMTime())
+    {
+      std::string error;
+      s.Valid = false;
+      if (!vtkMatrixTreeConvert::ToTriangleMesh(input, s.Mesh, s.CellOfTriangle, error))
+      {
+        vtkErrorMacro("RequestData: " << error);
+        return 0;
+      }
+      try
+      {
+        s.Tree.build(s.Mesh);
+      }
+      catch (const std::exception& e)
+      {
+        vtkErrorMacro("RequestData: the SAH kd-tree could not be built: " << e.what());
+        return 0;
+      }
+      s.Input = input;
+      s.BuiltAt = input->GetMTime();
+      s.Valid = true;
+      this->LastRebuilt = true;
+      this->LastBuildTime = s.Tree.stats().buildMs;
+    }
+    else
+    {
+      this->LastRebuilt = false;
+    }
   }
-  const vtkIdType buildsBefore = this->Tree->GetNumberOfBuilds();
-  if (!this->Tree->BuildIfNeeded())
+  else
   {
-    vtkErrorMacro("RequestData: the matrix tree could not be built (see the error above).");
-    return 0;
+    if (this->Tree->GetDataSet() != input)
+    {
+      this->Tree->SetDataSet(input);
+    }
+    const vtkIdType buildsBefore = this->Tree->GetNumberOfBuilds();
+    if (!this->Tree->BuildIfNeeded())
+    {
+      vtkErrorMacro("RequestData: the matrix tree could not be built (see the error above).");
+      return 0;
+    }
+    this->LastRebuilt = this->Tree->GetNumberOfBuilds() != buildsBefore;
+    this->LastBuildTime = this->Tree->GetBuildTime();
   }
-  this->LastRebuilt = this->Tree->GetNumberOfBuilds() != buildsBefore;
-  this->LastBuildTime = this->Tree->GetBuildTime();
   this->UpdateProgress(0.3);
 
   vtkMatrixTreeInternals& in = *this->Tree->GetInternals();
+  const mtree::TriangleMesh& mesh = useSah ? this->Sah->Mesh : in.Mesh;
+  const std::vector<vtkIdType>& cellOfTriangle = useSah ? this->Sah->CellOfTriangle : in.CellOfTriangle;
   mtree::Box scene;
-  for (size_t i = 0; i < in.Mesh.numPoints(); ++i)
+  for (size_t i = 0; i < mesh.numPoints(); ++i)
   {
-    scene.extend(mtree::Vec3(&in.Mesh.points()[3 * i]));
+    scene.extend(mtree::Vec3(&mesh.points()[3 * i]));
   }
   mtree::Camera cam;
   cam.width = w;
@@ -240,7 +299,17 @@ int vtkMatrixTreeRayCaster::RequestData(
   ro.shadows = this->Shadows;
   ro.threads = this->NumberOfThreads;
   mtree::RenderResult r;
-  if (mtree::ocl::Tracer* clTracer = this->Tree->GetOpenCLTracer())
+  const mtree::TriangleTest test =
+    this->TriangleTest == WATERTIGHT ? mtree::TriangleTest::Watertight : mtree::TriangleTest::MollerTrumbore;
+  if (useSah)
+  {
+    const mtree::SahTraversal trav = this->SAHTraversal == RESTART
+      ? mtree::SahTraversal::Restart
+      : (this->SAHTraversal == SHORT_STACK ? mtree::SahTraversal::ShortStack : mtree::SahTraversal::Stack);
+    const mtree::SahTracer tracer{ this->Sah->Tree, mesh, trav, test, this->ShortStackSize };
+    r = mtree::render(tracer, mesh, scene, cam, ro);
+  }
+  else if (mtree::ocl::Tracer* clTracer = this->Tree->GetOpenCLTracer())
   {
     try
     {
@@ -254,7 +323,7 @@ int vtkMatrixTreeRayCaster::RequestData(
   }
   else
   {
-    const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh };
+    const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh, test };
     r = mtree::render(tracer, in.Mesh, scene, cam, ro);
   }
   this->UpdateProgress(0.9);
@@ -283,7 +352,7 @@ int vtkMatrixTreeRayCaster::RequestData(
   for (vtkIdType i = 0; i < npix; ++i)
   {
     const uint32_t p = r.hitPrim[i];
-    cells->SetValue(i, p == MT_NULL ? -1 : in.CellOfTriangle[p]);
+    cells->SetValue(i, p == MT_NULL ? -1 : cellOfTriangle[p]);
   }
   output->GetPointData()->Initialize();
   output->GetPointData()->SetScalars(rgb);
@@ -321,6 +390,10 @@ void vtkMatrixTreeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
 {
   this->Superclass::PrintSelf(os, indent);
   os << indent << "Backend: " << this->Tree->GetBackendAsString() << "\n";
+  os << indent << "Accelerator: " << (this->Accelerator == SAH_KDTREE ? "SAH kd-tree" : "matrix tree") << "\n";
+  os << indent << "SAHTraversal: " << this->SAHTraversal << "\n";
+  os << indent << "ShortStackSize: " << this->ShortStackSize << "\n";
+  os << indent << "TriangleTest: " << (this->TriangleTest == WATERTIGHT ? "watertight" : "Moller-Trumbore") << "\n";
   os << indent << "Tree:\n";
   this->Tree->PrintSelf(os, indent.GetNextIndent());
   os << indent << "ImageSize: " << this->ImageSize[0] << " x " << this->ImageSize[1] << "\n";

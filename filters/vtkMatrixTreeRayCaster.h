@@ -18,6 +18,12 @@
  * The tree settings are those of GetTree() (octree, automatic height by default). The tree is
  * rebuilt only when the input or the tree settings change.
  *
+ * The accelerator is selectable, so that the paper's baseline renders through the same code:
+ * SetAcceleratorToSAHKdTree() traces through a surface-area-heuristic kd-tree (Wald & Havran's
+ * O(N log N) build, 8-byte nodes) with the traversal SAHTraversal (KD-Restart, a full stack,
+ * or a short stack of ShortStackSize entries). TriangleTest picks Moller-Trumbore (default) or
+ * the watertight test of Woop, Benthin & Wald for either accelerator.
+ *
  * @sa
  * vtkMatrixTree
  */
@@ -90,6 +96,51 @@ public:
   ///@}
 
   ///@{
+  /**
+   * Accelerator: MATRIX_TREE (default; GetTree()'s settings and backend) or SAH_KDTREE (CPU only;
+   * rebuilt when the input changes; GetLastBuildTime() is then the SAH build).
+   */
+  enum Accelerators
+  {
+    MATRIX_TREE = 0,
+    SAH_KDTREE = 1
+  };
+  vtkSetClampMacro(Accelerator, int, MATRIX_TREE, SAH_KDTREE);
+  vtkGetMacro(Accelerator, int);
+  void SetAcceleratorToMatrixTree() { this->SetAccelerator(MATRIX_TREE); }
+  void SetAcceleratorToSAHKdTree() { this->SetAccelerator(SAH_KDTREE); }
+  ///@}
+
+  ///@{
+  /** Traversal of the SAH kd-tree: RESTART (KD-Restart), STACK (default), SHORT_STACK. */
+  enum SAHTraversals
+  {
+    RESTART = 0,
+    STACK = 1,
+    SHORT_STACK = 2
+  };
+  vtkSetClampMacro(SAHTraversal, int, RESTART, SHORT_STACK);
+  vtkGetMacro(SAHTraversal, int);
+  /** Entries of the short stack (default 3, the paper's setting); 0 = restarts only. */
+  vtkSetClampMacro(ShortStackSize, int, 0, 64);
+  vtkGetMacro(ShortStackSize, int);
+  ///@}
+
+  ///@{
+  /**
+   * Ray/triangle test: MOLLER_TRUMBORE (default, fastest) or WATERTIGHT (no ray slips between
+   * the triangles of a closed mesh; a few percent slower).
+   */
+  enum TriangleTests
+  {
+    MOLLER_TRUMBORE = 0,
+    WATERTIGHT = 1
+  };
+  vtkSetClampMacro(TriangleTest, int, MOLLER_TRUMBORE, WATERTIGHT);
+  vtkGetMacro(TriangleTest, int);
+  ///@}
+
+  ///@{
   /** Statistics of the last execution. Times in milliseconds. */
   vtkGetMacro(LastBuildTime, double);
   vtkGetMacro(LastRenderTime, double);
@@ -113,6 +164,12 @@ protected:
   int RequestData(vtkInformation*, vtkInformationVector**, vtkInformationVector*) override;
 
   vtkMatrixTree* Tree;
+  struct SahState;
+  SahState* Sah = nullptr;
+  int Accelerator = MATRIX_TREE;
+  int SAHTraversal = STACK;
+  int ShortStackSize = 3;
+  int TriangleTest = MOLLER_TRUMBORE;
   int ImageSize[2] = { 800, 800 };
   double Position[3] = { 0, 0, 1 };
   double FocalPoint[3] = { 0, 0, 0 };

@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray, vtkIntArray
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray, vtkIntArray, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkDataSet, vtkPolyData
 
 from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
@@ -279,9 +279,14 @@ class MatrixTree:
                 "triangle_tests": self._tree.GetLastTriangleTests()}
 
 
+_TRAVERSALS = {"restart": 0, "stack": 1, "shortstack": 2}
+_TESTS = {"moller-trumbore": 0, "mt": 0, "watertight": 1}
+
+
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
            shadows: bool = True, threads: int = 0, caster: vtkMatrixTreeRayCaster | None = None,
-           backend: str = "cpu") -> dict:
+           backend: str = "cpu", traversal: str = "stack", triangle_test: str = "moller-trumbore",
+           leaf_scale: float | None = None) -> dict:
     """Ray cast a mesh through a matrix tree: primary rays, one shadow ray per hit, Lambert shading.
 
     Parameters
@@ -289,9 +294,21 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     mesh : vtkPolyData, pyvista.PolyData or str
     size : (int, int), default: (800, 800)
         Image width and height.
-    tree : {"octree", "kdtree"}, default: "octree"
+    tree : {"octree", "kdtree", "sah"}, default: "octree"
+        A matrix octree or regular matrix kd-tree, or the baseline: a SAH kd-tree (Wald & Havran
+        build, 8-byte nodes; CPU only) traced with ``traversal``.
     height : int, default: 0
-        Tree height, 0 = automatic.
+        Matrix-tree height, 0 = automatic (from the scene, see ``leaf_scale``).
+    traversal : {"stack", "shortstack", "restart"}, default: "stack"
+        SAH kd-tree traversal: a full stack, a short stack of 3 entries, or KD-Restart. Ignored
+        for matrix trees (they walk leaf to neighbour, no stack).
+    triangle_test : {"moller-trumbore", "watertight"}, default: "moller-trumbore"
+        Moller-Trumbore is the fastest; the watertight test (Woop, Benthin & Wald 2013) lets no ray
+        slip between the triangles of a closed mesh, at a few percent of speed.
+    leaf_scale : float, optional
+        Automatic height: the leaf extent aimed at, as a multiple of the median triangle extent
+        (engine default 2.0, fastest build; 1.0 renders faster on most meshes, see
+        docs/bench_rays.md).
     camera : None or sequence, default: None
         ``None`` frames the mesh automatically; otherwise a pyvista-style camera position
         ``[position, focal_point, view_up]`` (optionally with a fourth item, the vertical view
@@ -323,9 +340,23 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     w, h = int(size[0]), int(size[1])
     if w < 1 or h < 1:
         raise ValueError(f"size must be two positive integers, got {size!r}")
+    if traversal not in _TRAVERSALS:
+        raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
+    if triangle_test not in _TESTS:
+        raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
     rc = caster if caster is not None else vtkMatrixTreeRayCaster()
+    if tree == "sah":
+        if backend != "cpu":
+            raise ValueError("the SAH kd-tree baseline runs on the CPU only: use backend='cpu'")
+        rc.SetAcceleratorToSAHKdTree()
+        rc.SetSAHTraversal(_TRAVERSALS[traversal])
+    else:
+        rc.SetAcceleratorToMatrixTree()
+        rc.GetTree().SetTreeType(_tree_type(tree))
+    rc.SetTriangleTest(_TESTS[triangle_test])
+    if leaf_scale is not None:
+        rc.GetTree().SetLeafScale(float(leaf_scale))
     rc.GetTree().SetBackend(_backend(backend))
-    rc.GetTree().SetTreeType(_tree_type(tree))
     rc.GetTree().SetHeight(int(height))
     rc.GetTree().SetNumberOfThreads(int(threads))
     rc.SetNumberOfThreads(int(threads))
@@ -367,6 +398,124 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         "triangle_tests_per_ray": rc.GetTotalTriangleTests() / max(rays, 1),
         "caster": rc,
     }
+
+
+def time_frames(frames, methods=("octree", "kdtree", "sah-stack"), size=(800, 800), camera=None,
+                threads: int = 0, triangle_test: str = "moller-trumbore", leaf_scale: float | None = 1.0,
+                progress: bool = True, keep_images: bool = False) -> list:
+    """Rebuild and render every frame of an animation with each method: the paper's Table 1.
+
+    Every method renders the same frames through the same ray caster (primary rays plus one shadow
+    ray per hit); the tree is rebuilt every frame because every frame moves the points.
+
+    Parameters
+    ----------
+    frames : sequence
+        The frames: meshes (vtkPolyData / pyvista.PolyData) with the same triangles, or a tuple
+        ``(mesh, [points_0, points_1, ...])`` of one mesh and (n, 3) point arrays per frame.
+    methods : sequence of str, default: ("octree", "kdtree", "sah-stack")
+        ``"octree"``, ``"kdtree"`` (matrix trees) and ``"sah-stack"``, ``"sah-shortstack"``,
+        ``"sah-restart"`` (the SAH kd-tree baseline; built once per frame and shared by its
+        traversals, each row reports that build).
+    size, camera, threads, triangle_test, leaf_scale
+        As in :func:`render` (``leaf_scale`` defaults to 1.0 here, the rendering setting).
+    progress : bool, default: True
+        Show a progress bar (tqdm) over the frames.
+    keep_images : bool, default: False
+        Keep the first frame's render (and heat maps) of every method in ``row["first_frame"]``.
+
+    Returns
+    -------
+    list of dict
+        One row per method: ``method``, ``frames``, ``triangles``, ``build_ms`` and ``render_ms``
+        (means per frame), ``frame_ms`` (their sum), ``node_visits_per_ray``,
+        ``triangle_tests_per_ray``, ``build_ms_frames``, ``render_ms_frames``.
+
+    Examples
+    --------
+    >>> import matrixtree
+    >>> frames = [matrixtree.scenes.default_scene(0.2, time=t) for t in (0.0, 0.5)]
+    >>> rows = matrixtree.time_frames(frames, size=(48, 32), progress=False)
+    >>> [r["method"] for r in rows], rows[0]["frames"]
+    (['octree', 'kdtree', 'sah-stack'], 2)
+    """
+    if isinstance(frames, tuple) and len(frames) == 2 and isinstance(frames[1], (list, tuple)):
+        base = _as_polydata(frames[0])
+        point_sets = [np.asarray(p, dtype=np.float64) for p in frames[1]]
+    else:
+        meshes = [_as_polydata(f) for f in frames]
+        if not meshes:
+            raise ValueError("frames is empty")
+        base = meshes[0]
+        point_sets = [vtk_to_numpy(m.GetPoints().GetData()).astype(np.float64) for m in meshes]
+        ntri = base.GetNumberOfPolys()
+        for i, m in enumerate(meshes):
+            if m.GetNumberOfPolys() != ntri or m.GetNumberOfPoints() != base.GetNumberOfPoints():
+                raise ValueError(f"frame {i} has {m.GetNumberOfPoints()} points / {m.GetNumberOfPolys()} "
+                                 f"polygons, frame 0 {base.GetNumberOfPoints()} / {ntri}: frames must "
+                                 "share their connectivity")
+    if not point_sets:
+        raise ValueError("frames is empty")
+    for i, p in enumerate(point_sets):
+        if p.shape != (base.GetNumberOfPoints(), 3):
+            raise ValueError(f"frame {i}: points of shape {p.shape}, expected ({base.GetNumberOfPoints()}, 3)")
+    valid = {"octree", "kdtree", "sah-stack", "sah-shortstack", "sah-restart"}
+    bad = [m for m in methods if m not in valid]
+    if bad:
+        raise ValueError(f"unknown method(s) {bad}; choose from {sorted(valid)}")
+    # One polydata per accelerator (same connectivity, points replaced each frame), one caster each.
+    work = vtkPolyData()
+    work.DeepCopy(base)
+    casters = {}
+    rows = {m: {"method": m, "build_ms_frames": [], "render_ms_frames": [], "rays": 0, "visits": 0, "tests": 0}
+            for m in methods}
+    it = range(len(point_sets))
+    if progress:
+        try:
+            from tqdm import tqdm
+
+            it = tqdm(it, desc="frames", unit="frame")
+        except ImportError:  # pragma: no cover
+            pass
+    for fi in it:
+        pts = vtkPoints()
+        pts.SetData(numpy_to_vtk(np.ascontiguousarray(point_sets[fi]), deep=True))
+        work.SetPoints(pts)
+        work.Modified()
+        sah_build = None  # the SAH tree is built by the first SAH row of the frame, shared by the rest
+        for m in methods:
+            key = "sah" if m.startswith("sah") else m
+            img = render(work, size=size, tree=key, camera=camera, threads=threads, caster=casters.get(key),
+                         traversal=m.split("-")[1] if key == "sah" else "stack",
+                         triangle_test=triangle_test, leaf_scale=leaf_scale)
+            casters[key] = img["caster"]
+            r = rows[m]
+            build = img["build_ms"]
+            if key == "sah":
+                if img["rebuilt"] or sah_build is None:
+                    sah_build = img["build_ms"]
+                build = sah_build
+            r["build_ms_frames"].append(build)
+            r["render_ms_frames"].append(img["render_ms"])
+            r["rays"] += img["rays"]
+            r["visits"] += img["node_visits_per_ray"] * img["rays"]
+            r["tests"] += img["triangle_tests_per_ray"] * img["rays"]
+            if keep_images and fi == 0:
+                r["first_frame"] = {k: img[k] for k in ("rgb", "node_visits", "triangle_tests")}
+    out = []
+    for m in methods:
+        r = rows[m]
+        nf = len(r["build_ms_frames"])
+        b = float(np.mean(r["build_ms_frames"]))
+        rm = float(np.mean(r["render_ms_frames"]))
+        row = {"method": m, "frames": nf, "triangles": base.GetNumberOfPolys(), "build_ms": b, "render_ms": rm,
+               "frame_ms": b + rm, "node_visits_per_ray": r["visits"] / max(r["rays"], 1),
+               "triangle_tests_per_ray": r["tests"] / max(r["rays"], 1),
+               "build_ms_frames": r["build_ms_frames"], "render_ms_frames": r["render_ms_frames"]}
+        if "first_frame" in r:
+            row["first_frame"] = r["first_frame"]
+        out.append(row)
+    return out
 
 
 def save_rgb(rgb: np.ndarray, path: str | os.PathLike) -> str:

@@ -162,3 +162,66 @@ def test_empty_mesh_misses_everything():
     t, c = tree.intersect([[0, 0, 0]], [[1, 0, 0]])
     assert np.isinf(t[0]) and c[0] == -1
     assert tree.find_leaves([[0, 0, 0]])[0, 0] == -1
+
+
+# ---------------------------------------------------------------------------------------------
+# The SAH kd-tree baseline through the same ray caster, and time_frames
+# ---------------------------------------------------------------------------------------------
+def _same_hits(a, b):
+    """Pixels where two renders see a different first hit: a different depth beyond round-off
+    (a different triangle at the same depth is an edge tie, not an error)."""
+    da, db = a["depth"].astype(np.float64), b["depth"].astype(np.float64)
+    both_inf = np.isinf(da) & np.isinf(db)
+    fin = np.isfinite(da) & np.isfinite(db)
+    close = np.zeros_like(fin)
+    close[fin] = np.abs(da[fin] - db[fin]) <= 1e-5 * np.maximum(1.0, np.abs(db[fin]))
+    return int(np.sum(~(both_inf | close)))
+
+
+@pytest.mark.parametrize("traversal", ["stack", "shortstack", "restart"])
+def test_sah_baseline_sees_what_the_matrix_tree_sees(traversal):
+    bunny = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
+    ref = matrixtree.render(bunny, size=(96, 80), tree="octree")
+    for test in ("moller-trumbore", "watertight"):
+        sah = matrixtree.render(bunny, size=(96, 80), tree="sah", traversal=traversal, triangle_test=test)
+        assert _same_hits(sah, ref) == 0
+        assert sah["hits"] == ref["hits"] > 1000
+        # same shading wherever the hits agree (shadow rays included): at most a pixel or two
+        # differs by a shadow ray grazing an edge
+        assert np.sum(np.any(sah["rgb"] != ref["rgb"], axis=2)) <= 3
+        assert sah["triangle_tests_per_ray"] > 0 and sah["node_visits_per_ray"] > 0
+
+
+def test_sah_caster_rebuilds_only_when_points_move():
+    mesh = scenes.default_scene(resolution=0.2)
+    img = matrixtree.render(mesh, size=(32, 32), tree="sah")
+    rc = img["caster"]
+    again = matrixtree.render(mesh, size=(32, 32), tree="sah", traversal="restart", caster=rc)
+    assert img["rebuilt"] and not again["rebuilt"]
+    mesh.GetPoints().Modified()
+    mesh.Modified()
+    third = matrixtree.render(mesh, size=(32, 32), tree="sah", caster=rc)
+    assert third["rebuilt"]
+    with pytest.raises(ValueError, match="traversal"):
+        matrixtree.render(mesh, tree="sah", traversal="queue")
+    with pytest.raises(ValueError, match="CPU only"):
+        matrixtree.render(mesh, tree="sah", backend="opencl")
+
+
+def test_time_frames_rebuilds_every_frame_and_matches_single_renders():
+    frames = [scenes.default_scene(0.2, time=t) for t in (0.0, 0.25, 0.5)]
+    rows = matrixtree.time_frames(frames, methods=("octree", "sah-stack", "sah-restart"), size=(40, 30),
+                                  progress=False, keep_images=True)
+    assert [r["method"] for r in rows] == ["octree", "sah-stack", "sah-restart"]
+    for r in rows:
+        assert r["frames"] == 3 and len(r["build_ms_frames"]) == 3
+        assert all(b > 0 for b in r["build_ms_frames"]), r
+    # the two SAH rows share each frame's build
+    assert rows[1]["build_ms_frames"] == rows[2]["build_ms_frames"]
+    # first frame equals a stand-alone render of frame 0
+    single = matrixtree.render(frames[0], size=(40, 30), tree="octree", leaf_scale=1.0)
+    assert np.array_equal(rows[0]["first_frame"]["rgb"], single["rgb"])
+    with pytest.raises(ValueError, match="connectivity"):
+        matrixtree.time_frames([frames[0], scenes.default_scene(0.3)], progress=False)
+    with pytest.raises(ValueError, match="unknown method"):
+        matrixtree.time_frames(frames, methods=("bvh",), progress=False)
