@@ -16,6 +16,7 @@ namespace {
 struct Context::Impl {};
 struct Builder::State {};
 struct Tracer::State {};
+struct VolumeRenderer::State {};
 
 bool compiledWithOpenCL() { return false; }
 std::vector<DeviceInfo> listDevices(std::string* why) {
@@ -52,6 +53,16 @@ void Tracer::intersectAny(const double*, const double*, size_t, double, double, 
 }
 void Tracer::findLeaves(const double*, size_t, int32_t*, std::vector<KernelTiming>*) { unavailable(); }
 Context& Tracer::context() const { unavailable(); }
+
+VolumeRenderer::VolumeRenderer(std::shared_ptr<Context>) { unavailable(); }
+VolumeRenderer::~VolumeRenderer() = default;
+void VolumeRenderer::upload(const BlockSparseVolume&) { unavailable(); }
+bool VolumeRenderer::uploaded() const { return false; }
+VolumeImage VolumeRenderer::render(const VolumeGeometry&, const TransferTable&, const VolumeCamera&,
+                                   const VolumeRenderOptions&, std::vector<KernelTiming>*) {
+  unavailable();
+}
+Context& VolumeRenderer::context() const { unavailable(); }
 
 }  // namespace ocl
 }  // namespace mtree

@@ -1,0 +1,193 @@
+// OpenCL host code, part 4: volume ray casting on the device (opencl/volume.cl) over an uploaded
+// BlockSparseVolume. The parameters are computed here exactly as renderVolume() computes them
+// (engine/src/volume.cpp): camera basis, tan of the half angle, the premultiplied table with the
+// opacity corrected for the step, the table's float lo/scale; the kernel does the rest per ray.
+#ifdef MATRIXTREE_HAVE_OPENCL
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "mtree/parallel.h"
+#include "opencl_internal.h"
+
+namespace mtree {
+namespace ocl {
+
+struct VolumeRenderer::State {
+  Buffer ptr, data, occ, ip, dp, table, out, counts;
+  std::vector<int32_t> levelInts;  // per level: dims x/y/z, offset into occ
+  int n[3] = {0, 0, 0}, logBlock[3] = {0, 0, 0}, ptrDims[2] = {0, 0};
+  uint32_t blockVolume = 0;
+  int levels = 0;
+  bool uploaded = false;
+};
+
+VolumeRenderer::VolumeRenderer(std::shared_ptr<Context> ctx)
+    : ctx_(ctx ? std::move(ctx) : Context::shared()), st_(new State) {}
+VolumeRenderer::~VolumeRenderer() = default;
+Context& VolumeRenderer::context() const { return *ctx_; }
+bool VolumeRenderer::uploaded() const { return st_->uploaded; }
+
+void VolumeRenderer::upload(const BlockSparseVolume& vol) {
+  if (vol.levelCount() == 0) throw std::invalid_argument("VolumeRenderer (OpenCL): the volume was not built");
+  Context::Impl& impl = ctx_->impl();
+  std::lock_guard<std::recursive_mutex> lock(impl.mutex);
+  State& S = *st_;
+  S.uploaded = false;
+  const BlockSparseMatrix<float>& m = vol.voxels();
+  const MtSparseDesc& d = m.desc();
+  for (int a = 0; a < 3; ++a) {
+    S.n[a] = vol.dim(a);
+    S.logBlock[a] = d.logBlock[a];
+  }
+  S.ptrDims[0] = d.ptrDims[0];
+  S.ptrDims[1] = d.ptrDims[1];
+  S.blockVolume = d.blockVolume;
+  // The matrix-tree occupancy levels, concatenated (one byte per node, as the CPU keeps them).
+  S.levels = vol.levelCount();
+  S.levelInts.clear();
+  std::vector<uint8_t> occ;
+  for (int L = 0; L < S.levels; ++L) {
+    const int nx = vol.levelDim(L, 0), ny = vol.levelDim(L, 1), nz = vol.levelDim(L, 2);
+    S.levelInts.insert(S.levelInts.end(), {nx, ny, nz, static_cast<int32_t>(occ.size())});
+    for (int k = 0; k < nz; ++k)
+      for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) occ.push_back(vol.nodeVisible(L, i, j, k) ? 1 : 0);
+  }
+  if (occ.size() >= size_t(std::numeric_limits<int32_t>::max()))
+    throw std::length_error("VolumeRenderer (OpenCL): occupancy levels too large for 32-bit offsets");
+  Launcher run(impl, nullptr);
+  auto put = [&](Buffer& b, const void* src, size_t bytes, const char* what) {
+    b.ensure(impl, bytes, what);
+    run.write(b, src, bytes, what);
+  };
+  put(S.ptr, m.pointers().data(), m.pointers().size() * sizeof(uint32_t), "volume pointer matrix");
+  put(S.data, m.data().data(), m.data().size() * sizeof(float), "volume blocks");
+  put(S.occ, occ.data(), occ.size(), "volume occupancy levels");
+  run.finish();
+  S.uploaded = true;
+}
+
+VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTable& tf, const VolumeCamera& cam,
+                                   const VolumeRenderOptions& opt, std::vector<KernelTiming>* kernels) {
+  const auto start = std::chrono::steady_clock::now();
+  State& S = *st_;
+  if (!S.uploaded) throw Error("OpenCL VolumeRenderer: no volume uploaded; call upload(volume) first");
+  // renderVolume's argument checks, with its messages.
+  if (tf.size() < 2) throw std::invalid_argument("renderVolume (OpenCL): empty transfer table");
+  for (int a = 0; a < 3; ++a)
+    if (!(geo.spacing[a] != 0) || !std::isfinite(geo.spacing[a]) || !std::isfinite(geo.origin[a]))
+      throw std::invalid_argument("renderVolume (OpenCL): spacing must be finite and non-zero, origin finite");
+  if (!(opt.sampleDistance > 0) || !std::isfinite(opt.sampleDistance))
+    throw std::invalid_argument("renderVolume (OpenCL): sample distance must be positive");
+  if (!(opt.imageSampleDistance >= 1) || !std::isfinite(opt.imageSampleDistance))
+    throw std::invalid_argument("renderVolume (OpenCL): image sample distance must be >= 1");
+  if (cam.width < 1 || cam.height < 1 || cam.width > 16384 || cam.height > 16384)
+    throw std::invalid_argument("renderVolume (OpenCL): image size must be in 1..16384");
+  const Vec3 fwd0 = cam.focalPoint - cam.position;
+  if (!isFinite(cam.position) || !isFinite(cam.focalPoint) || norm(fwd0) == 0 ||
+      norm(cross(fwd0, cam.viewUp)) == 0 || (!cam.parallel && !(cam.viewAngle > 0 && cam.viewAngle < 180)) ||
+      (cam.parallel && !(cam.parallelScale > 0)))
+    throw std::invalid_argument("renderVolume (OpenCL): degenerate camera (position = focal point, view up along "
+                                "the view, or view angle/parallel scale out of range)");
+
+  // The step-corrected, premultiplied table (renderVolume's loop).
+  const int ne = tf.size();
+  std::vector<float> table(size_t(ne) * 4);
+  const double ratio = opt.sampleDistance / tf.unitDistance();
+  for (int i = 0; i < ne; ++i) {
+    const float* e = tf.rgba().data() + 4 * size_t(i);
+    const double a = e[3] >= 1.f ? 1.0 : 1.0 - std::pow(1.0 - double(e[3]), ratio);
+    for (int ch = 0; ch < 3; ++ch) table[4 * size_t(i) + ch] = static_cast<float>(e[ch] * a);
+    table[4 * size_t(i) + 3] = static_cast<float>(a);
+  }
+  // TransferTable::index's float lo and scale (its constructor's expressions).
+  const int last = ne - 1;
+  const float flo = static_cast<float>(tf.lo());
+  const float fscale = static_cast<float>(last / (tf.hi() - tf.lo()));
+
+  const int w = std::max(1, static_cast<int>(std::lround(cam.width / opt.imageSampleDistance)));
+  const int h = std::max(1, static_cast<int>(std::lround(cam.height / opt.imageSampleDistance)));
+  const double aspect = double(cam.width) / cam.height;
+  const Vec3 fwd = normalized(cam.focalPoint - cam.position);
+  const Vec3 right = normalized(cross(fwd, cam.viewUp));
+  const Vec3 up = cross(right, fwd);
+  const double th = std::tan(cam.viewAngle * 0.5 * 3.14159265358979323846 / 180.0);
+
+  std::vector<int32_t> ip = {S.n[0], S.n[1], S.n[2], S.logBlock[0], S.logBlock[1], S.logBlock[2], S.ptrDims[0],
+                             S.ptrDims[1], static_cast<int32_t>(S.blockVolume), S.levels, last,
+                             opt.emptySpaceSkipping ? 1 : 0, opt.shade ? 1 : 0, cam.parallel ? 1 : 0};
+  ip.insert(ip.end(), S.levelInts.begin(), S.levelInts.end());
+  const double threshold = opt.earlyTermination >= 1 ? 2.0 : std::max(0.0, opt.earlyTermination);
+  const std::vector<double> dp = {cam.position.x, cam.position.y, cam.position.z, fwd.x, fwd.y, fwd.z,
+                                  right.x, right.y, right.z, up.x, up.y, up.z, th, aspect, cam.parallelScale,
+                                  geo.origin[0], geo.origin[1], geo.origin[2],
+                                  geo.spacing[0], geo.spacing[1], geo.spacing[2], opt.sampleDistance, threshold,
+                                  opt.ambient, opt.diffuse, opt.specular, opt.specularPower, double(flo),
+                                  double(fscale)};
+
+  Context::Impl& impl = ctx_->impl();
+  std::lock_guard<std::recursive_mutex> lock(impl.mutex);
+  const size_t rays = size_t(w) * h;
+  std::vector<float> small(rays * 4);
+  std::vector<uint32_t> counts(rays * 2);
+  {
+    Launcher run(impl, kernels);
+    auto put = [&](Buffer& b, const void* src, size_t bytes, const char* what) {
+      b.ensure(impl, bytes, what);
+      run.write(b, src, bytes, what);
+    };
+    put(S.ip, ip.data(), ip.size() * sizeof(int32_t), "volume int parameters");
+    put(S.dp, dp.data(), dp.size() * sizeof(double), "volume parameters");
+    put(S.table, table.data(), table.size() * sizeof(float), "transfer table");
+    S.out.ensure(impl, small.size() * sizeof(float), "volume image");
+    S.counts.ensure(impl, counts.size() * sizeof(uint32_t), "volume ray counters");
+    const cl_int cw = w, ch = h;
+    run.run(opt.doublePrecision ? "mt_volume_march_d" : "mt_volume_march_f", rays, 0, S.ptr, S.data, S.occ, S.ip,
+            S.dp, S.table, S.out, S.counts, cw, ch);
+    run.read(S.out, small.data(), small.size() * sizeof(float), "volume image");
+    run.read(S.counts, counts.data(), counts.size() * sizeof(uint32_t), "volume ray counters");
+    run.finish();
+  }
+
+  VolumeImage img;
+  img.width = cam.width;
+  img.height = cam.height;
+  img.rays = rays;
+  for (size_t i = 0; i < rays; ++i) {
+    img.samples += counts[2 * i];
+    img.skips += counts[2 * i + 1];
+  }
+  if (w == cam.width && h == cam.height) {
+    img.rgba = std::move(small);
+  } else {
+    // renderVolume's bilinear reconstruction from the coarse image, on the host.
+    const int W = cam.width, H = cam.height;
+    img.rgba.assign(size_t(W) * H * 4, 0.f);
+#pragma omp parallel for num_threads(resolveThreads(opt.threads)) schedule(static)
+    for (int y = 0; y < H; ++y) {
+      const double sy = std::min(std::max((y + 0.5) * h / H - 0.5, 0.0), double(h - 1));
+      const int y0 = std::min(static_cast<int>(sy), h - 1), y1 = std::min(y0 + 1, h - 1);
+      const float fy = float(sy - y0);
+      for (int x = 0; x < W; ++x) {
+        const double sx = std::min(std::max((x + 0.5) * w / W - 0.5, 0.0), double(w - 1));
+        const int x0 = std::min(static_cast<int>(sx), w - 1), x1 = std::min(x0 + 1, w - 1);
+        const float fx = float(sx - x0);
+        for (int c = 0; c < 4; ++c) {
+          const float a = small[(size_t(y0) * w + x0) * 4 + c], b = small[(size_t(y0) * w + x1) * 4 + c];
+          const float cc = small[(size_t(y1) * w + x0) * 4 + c], d = small[(size_t(y1) * w + x1) * 4 + c];
+          img.rgba[(size_t(y) * W + x) * 4 + c] = (a + fx * (b - a)) * (1 - fy) + (cc + fx * (d - cc)) * fy;
+        }
+      }
+    }
+  }
+  img.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return img;
+}
+
+}  // namespace ocl
+}  // namespace mtree
+
+#endif  // MATRIXTREE_HAVE_OPENCL
