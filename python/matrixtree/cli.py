@@ -1,95 +1,173 @@
-"""Command line: ``python -m matrixtree [demo|render FILE] [options]``.
+"""Command line: ``python -m matrixtree [demo|render|frames|locate] ...``.
 
-``demo`` (the default, no arguments, no downloads) generates the default scene, builds a matrix
-octree and a regular matrix kd-tree over it with the §5.1 parallel build, prints the build
-phases and times, ray casts an image (primary + shadow rays) through each, and writes the
-picture and the per-pixel node-visit and triangle-test heat maps into the output folder.
-``render FILE`` does the same for a mesh file of yours.
+``demo`` (the default: no arguments, no downloads) animates the generated default scene (a wavy
+floor, a turning torus knot, a ring of spheres: about 200k triangles), rebuilds every tree every
+frame and renders it (primary + one shadow ray per hit, 800x800) with the matrix octree, the
+regular matrix kd-tree and the SAH kd-tree baseline with a stack, a short stack and KD-Restart,
+then prints a table like the paper's Table 1 (build and render ms per frame, node visits and
+triangle tests per ray) and writes the first frame's pictures and heat maps and the table into
+the output folder (``out/`` by default).
+
+``render FILE``        the same comparison on one mesh file of yours (one frame).
+``frames FOLDER``      a folder of meshes with the same connectivity, one frame per file.
+``locate GRID POINTS`` locate the points of a file (``.npy``, ``.csv``/``.txt`` with x y z per
+                       line, or any mesh/grid file's points) in an unstructured grid (``.vtu``,
+                       ``.vtk``, Exodus, SU2...); writes the cell ids (and weights) as ``.npy``.
 """
 
 from __future__ import annotations
 
 import argparse
+import glob
 import json
 import os
 import sys
 import time
 
+import numpy as np
+
 import matrixtree
 from matrixtree import scenes
 
+METHODS = ("octree", "kdtree", "sah-stack", "sah-shortstack", "sah-restart")
+LABELS = {"octree": "matrix octree", "kdtree": "matrix kd-tree", "sah-stack": "SAH kd-tree, stack",
+          "sah-shortstack": "SAH kd-tree, short stack (3)", "sah-restart": "SAH kd-tree, KD-Restart"}
+
 
 def _table(rows, cols):
-    widths = [max(len(c), *(len(str(r[c])) for r in rows)) for c in cols]
-    line = "  ".join(c.rjust(w) for c, w in zip(cols, widths))
-    out = [line, "  ".join("-" * w for w in widths)]
+    def fmt(v):
+        return f"{v:.2f}" if isinstance(v, float) else str(v)
+
+    widths = [max(len(c), *(len(fmt(r[c])) for r in rows)) for c in cols]
+    out = ["  ".join(c.rjust(w) for c, w in zip(cols, widths)), "  ".join("-" * w for w in widths)]
     for r in rows:
-        out.append("  ".join(str(r[c]).rjust(w) for c, w in zip(cols, widths)))
+        out.append("  ".join(fmt(r[c]).rjust(w) for c, w in zip(cols, widths)))
     return "\n".join(out)
 
 
-def run(mesh, name: str, out_dir: str, size, camera, trees, height: int, threads: int) -> dict:
+def compare(frames, name: str, out_dir: str, size, camera, threads: int, methods=METHODS) -> list:
+    """Rebuild + render every frame with every method, print the Table-1 style table, write the
+    first frame's render and heat maps per method, and the table as JSON and markdown."""
     os.makedirs(out_dir, exist_ok=True)
-    n = mesh.GetNumberOfPolys()
-    print(f"scene {name}: {n:,} triangles, image {size[0]}x{size[1]}, primary + shadow rays")
-    rows, outputs = [], {}
-    for kind in trees:
-        tree = matrixtree.MatrixTree(mesh, tree=kind, height=height, threads=threads)
-        builds = [tree.build().stats() for _ in range(5)]  # median of 5 builds
-        builds.sort(key=lambda s: s["build_ms"])
-        s = builds[len(builds) // 2]
-        phases = "  ".join(f"{k} {v:.2f}" for k, v in s["phases_ms"].items())
-        print(f"\n{kind}: height {s['height']}, leaf grid {'x'.join(map(str, s['leaf_dims']))}, "
-              f"{s['leaves']:,} leaves, {s['references']:,} references, {s['bytes'] / 1e6:.2f} MB")
-        print(f"  build {s['build_ms']:.2f} ms (median of 5) = {phases}")
-        img = matrixtree.render(mesh, size=size, tree=kind, height=height, camera=camera, threads=threads)
-        base = os.path.join(out_dir, f"{name}_{kind}")
-        files = [matrixtree.save_rgb(img["rgb"], base + ".png"),
-                 matrixtree.save_heatmap(img["node_visits"], base + "_node_visits.png", vmax=100),
-                 matrixtree.save_heatmap(img["triangle_tests"], base + "_triangle_tests.png", vmax=250)]
-        print(f"  render {img['render_ms']:.1f} ms, {img['rays'] / img['render_ms'] / 1e3:.2f} M rays/s, "
-              f"{img['node_visits_per_ray']:.1f} node visits and {img['triangle_tests_per_ray']:.1f} "
-              f"triangle tests per ray")
-        print("  wrote " + ", ".join(files))
-        rows.append({"tree": kind, "triangles": n, "height": s["height"], "build_ms": round(s["build_ms"], 2),
-                     "render_ms": round(img["render_ms"], 1), "rays": img["rays"],
-                     "node_visits_per_ray": round(img["node_visits_per_ray"], 2),
-                     "tri_tests_per_ray": round(img["triangle_tests_per_ray"], 2),
-                     "bytes": s["bytes"], "phases_ms": s["phases_ms"]})
-        outputs[kind] = files
-    cols = ["tree", "triangles", "height", "build_ms", "render_ms", "node_visits_per_ray", "tri_tests_per_ray", "bytes"]
-    print("\n" + _table(rows, cols))
-    with open(os.path.join(out_dir, f"{name}.json"), "w") as f:
-        json.dump(rows, f, indent=1)
-    print(f"\ntable written to {os.path.join(out_dir, name + '.json')}")
-    return {"rows": rows, "files": outputs}
+    rows = matrixtree.time_frames(frames, methods=methods, size=size, camera=camera, threads=threads,
+                                  keep_images=True)
+    base = next((r for r in rows if r["method"] == "sah-stack"), None)
+    files = []
+    for r in rows:
+        r["label"] = LABELS[r["method"]]
+        if base:
+            r["render_x_vs_sah_stack"] = base["render_ms"] / r["render_ms"]
+            r["frame_x_vs_sah_stack"] = base["frame_ms"] / r["frame_ms"]
+        img = r.pop("first_frame")
+        stem = os.path.join(out_dir, f"{name}_{r['method']}")
+        files += [matrixtree.save_rgb(img["rgb"], stem + ".png"),
+                  matrixtree.save_heatmap(img["node_visits"], stem + "_node_visits.png", vmax=100),
+                  matrixtree.save_heatmap(img["triangle_tests"], stem + "_triangle_tests.png", vmax=100)]
+    cols = ["label", "build_ms", "render_ms", "frame_ms", "node_visits_per_ray", "triangle_tests_per_ray"]
+    if base:
+        cols += ["render_x_vs_sah_stack", "frame_x_vs_sah_stack"]
+    n, nt = rows[0]["frames"], rows[0]["triangles"]
+    print(f"\n{name}: {nt:,} triangles, {n} frame(s), {size[0]}x{size[1]} pixels, primary + shadow rays; "
+          "times are means per frame (every tree rebuilt every frame)")
+    print(_table(rows, cols))
+    table_json = os.path.join(out_dir, f"{name}_table.json")
+    with open(table_json, "w") as f:
+        json.dump([{k: v for k, v in r.items()} for r in rows], f, indent=1)
+    table_md = os.path.join(out_dir, f"{name}_table.md")
+    with open(table_md, "w") as f:
+        f.write("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n")
+        for r in rows:
+            f.write("| " + " | ".join(f"{r[c]:.2f}" if isinstance(r[c], float) else str(r[c]) for c in cols)
+                    + " |\n")
+    print(f"\nwrote {table_json}, {table_md} and {len(files)} pictures in {out_dir}/ "
+          f"(e.g. {os.path.basename(files[0])}, {os.path.basename(files[1])})")
+    return rows
+
+
+def _read_points(path: str) -> np.ndarray:
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".npy":
+        pts = np.load(path)
+    elif ext in (".csv", ".txt", ".xyz"):
+        pts = np.loadtxt(path, delimiter="," if ext == ".csv" else None, ndmin=2)
+    else:
+        from vtkmodules.util.numpy_support import vtk_to_numpy
+
+        ds = matrixtree.read_grid(path) if ext not in (".ply", ".obj", ".stl", ".vtp") else matrixtree.read_mesh(path)
+        pts = vtk_to_numpy(ds.GetPoints().GetData())
+    pts = np.asarray(pts, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] < 3:
+        raise ValueError(f"{path}: expected N x 3 coordinates, got shape {pts.shape}")
+    return pts[:, :3]
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m matrixtree", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("command", nargs="?", default="demo", choices=["demo", "render"])
-    p.add_argument("file", nargs="?", help="mesh file for 'render' (.ply .obj .stl .vtp .vtk)")
+    p.add_argument("command", nargs="?", default="demo", choices=["demo", "render", "frames", "locate"])
+    p.add_argument("inputs", nargs="*", help="render: FILE; frames: FOLDER; locate: GRID POINTS")
     p.add_argument("--out", default="out", help="output folder (default: out)")
     p.add_argument("--size", nargs=2, type=int, default=[800, 800], metavar=("W", "H"))
-    p.add_argument("--tree", choices=["octree", "kdtree", "both"], default="both")
-    p.add_argument("--height", type=int, default=0, help="tree height, 0 = automatic (default)")
+    p.add_argument("--frames", type=int, default=8, help="demo: frames of the animation (default 8)")
+    p.add_argument("--resolution", type=float, default=1.0,
+                   help="demo: scene tessellation (1.0 = about 200k triangles; 0.3 = 20k)")
+    p.add_argument("--methods", default=",".join(METHODS),
+                   help=f"comma-separated subset of {','.join(METHODS)}")
     p.add_argument("--threads", type=int, default=0, help="OpenMP threads, 0 = all (default)")
+    p.add_argument("--tree", choices=["octree", "kdtree"], default="octree", help="locate: tree kind")
     a = p.parse_args(argv)
-    trees = ["octree", "kdtree"] if a.tree == "both" else [a.tree]
+    methods = tuple(m for m in a.methods.split(",") if m)
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        p.error(f"unknown method(s) {bad}; choose from {','.join(METHODS)}")
     t0 = time.time()
-    if a.command == "demo":
-        mesh = scenes.default_scene()
-        run(mesh, "demo", a.out, a.size, scenes.DEFAULT_CAMERA, trees, a.height, a.threads)
-    else:
-        if not a.file:
-            p.error("render needs a mesh FILE")
-        try:
-            mesh = matrixtree.read_mesh(a.file)
-        except (OSError, ValueError) as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 2
-        name = os.path.splitext(os.path.basename(a.file))[0]
-        run(mesh, name, a.out, a.size, None, trees, a.height, a.threads)
+    try:
+        if a.command == "demo":
+            if a.frames < 1:
+                p.error("--frames must be >= 1")
+            print(f"generating {a.frames} frames of the default scene (resolution {a.resolution})")
+            frames = [scenes.default_scene(a.resolution, time=f / a.frames) for f in range(a.frames)]
+            compare(frames, "demo", a.out, a.size, scenes.DEFAULT_CAMERA, a.threads, methods)
+        elif a.command == "render":
+            if len(a.inputs) != 1:
+                p.error("render needs one mesh FILE")
+            mesh = matrixtree.read_mesh(a.inputs[0])
+            name = os.path.splitext(os.path.basename(a.inputs[0]))[0]
+            compare([mesh], name, a.out, a.size, None, a.threads, methods)
+        elif a.command == "frames":
+            if len(a.inputs) != 1 or not os.path.isdir(a.inputs[0]):
+                p.error("frames needs one FOLDER of mesh files with the same connectivity")
+            files = sorted(f for ext in ("ply", "obj", "stl", "vtp", "vtk")
+                           for f in glob.glob(os.path.join(a.inputs[0], f"*.{ext}")))
+            if not files:
+                p.error(f"{a.inputs[0]} holds no mesh files (.ply .obj .stl .vtp .vtk)")
+            print(f"reading {len(files)} frames from {a.inputs[0]}")
+            frames = [matrixtree.read_mesh(f) for f in files]
+            name = os.path.basename(os.path.normpath(a.inputs[0]))
+            compare(frames, name, a.out, a.size, None, a.threads, methods)
+        else:
+            if len(a.inputs) != 2:
+                p.error("locate needs GRID POINTS")
+            grid = matrixtree.read_grid(a.inputs[0])
+            pts = _read_points(a.inputs[1])
+            loc = matrixtree.CellLocator(grid, tree=a.tree, threads=a.threads)
+            t1 = time.perf_counter()
+            cells, weights = loc.locate(pts, return_weights=True)
+            ms = 1e3 * (time.perf_counter() - t1)
+            os.makedirs(a.out, exist_ok=True)
+            stem = os.path.join(a.out, os.path.splitext(os.path.basename(a.inputs[1]))[0])
+            np.save(stem + "_cells.npy", cells)
+            np.save(stem + "_weights.npy", weights)
+            found = int(np.sum(cells >= 0))
+            print(f"{len(pts):,} points in {grid.GetNumberOfCells():,} cells: {found:,} inside, "
+                  f"{len(pts) - found:,} outside (-1); {ms:.1f} ms ({len(pts) / max(ms, 1e-9) / 1e3:.2f} M points/s)")
+            print(f"wrote {stem}_cells.npy and {stem}_weights.npy")
+    except (OSError, ValueError, RuntimeError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     print(f"done in {time.time() - t0:.1f} s")
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
