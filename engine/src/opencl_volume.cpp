@@ -38,6 +38,11 @@ void VolumeRenderer::upload(const BlockSparseVolume& vol) {
   S.uploaded = false;
   const BlockSparseMatrix<float>& m = vol.voxels();
   const MtSparseDesc& d = m.desc();
+  // The kernel reads the float blocks (DIM^3 voxels each); a volume whose visible blocks are not
+  // held there (another voxel storage) is refused rather than rendered empty.
+  if (d.numBlocks == 0 && vol.stats().blocksAllocated > 0)
+    throw std::invalid_argument("VolumeRenderer (OpenCL): the volume's voxels are not in float blocks; build it "
+                                "from float input (or without compact storage)");
   for (int a = 0; a < 3; ++a) {
     S.n[a] = vol.dim(a);
     S.logBlock[a] = d.logBlock[a];
