@@ -19,6 +19,7 @@
 #include <vtkStructuredPoints.h>
 #include <vtkStructuredPointsReader.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -231,3 +232,92 @@ TEST(opencl_volume, Errors) {
 }
 
 }  // namespace
+
+// Timing at a realistic image size (not run by default; docs/bench_opencl.md gives the command):
+//   build-cl/bin/test_opencl_volume --gtest_also_run_disabled_tests --gtest_filter='*Timing*'
+// 512x512, headsq (64x64x93 shorts) and ironProt (68^3), unshaded and shaded, median of 3 renders
+// per back end (the first device render, which compiles the kernel, is not counted).
+TEST(opencl_volume, DISABLED_Timing512) {
+  REQUIRE_DEVICE(ctx);
+  struct Vol {
+    std::string name;
+    int dims[3];
+    std::vector<float> v;
+    VolumeGeometry g;
+  };
+  std::vector<Vol> vols;
+  {
+    Vol h{"headsq", {64, 64, 93}, {}, {}};
+    std::FILE* f = std::fopen(mtest::dataPath("volumes/headsq.raw").c_str(), "rb");
+    ASSERT_NE(f, nullptr);
+    std::vector<int16_t> raw(size_t(64) * 64 * 93);
+    ASSERT_EQ(std::fread(raw.data(), 2, raw.size(), f), raw.size());
+    std::fclose(f);
+    h.v.assign(raw.begin(), raw.end());
+    h.g.spacing[0] = 3.2;
+    h.g.spacing[1] = 3.2;
+    h.g.spacing[2] = 1.5;
+    vols.push_back(std::move(h));
+  }
+  {
+    vtkNew<vtkStructuredPointsReader> r;
+    r->SetFileName(mtest::dataPath("volumes/ironProt.vtk").c_str());
+    r->Update();
+    vtkImageData* im = r->GetOutput();
+    vtkDataArray* s = im->GetPointData()->GetScalars();
+    ASSERT_NE(s, nullptr);
+    Vol p{"ironProt", {0, 0, 0}, {}, {}};
+    im->GetDimensions(p.dims);
+    for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i) p.v.push_back(float(s->GetTuple1(i)));
+    im->GetSpacing(p.g.spacing);
+    im->GetOrigin(p.g.origin);
+    vols.push_back(std::move(p));
+  }
+  auto median3 = [](std::vector<double> t) {
+    std::sort(t.begin(), t.end());
+    return t[t.size() / 2];
+  };
+  for (const Vol& vv : vols) {
+    const auto mm = std::minmax_element(vv.v.begin(), vv.v.end());
+    const TransferTable tf = rampTable(*mm.first, *mm.second, 0.3, 0.4);
+    BlockSparseVolume vol;
+    vol.build(vv.v.data(), vv.dims, tf);
+    ocl::VolumeRenderer dev(ctx);
+    dev.upload(vol);
+    Vec3 lo, hi;
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = vv.g.origin[a];
+      hi[a] = vv.g.origin[a] + vv.g.spacing[a] * (vv.dims[a] - 1);
+    }
+    const Vec3 c = (lo + hi) * 0.5, e = hi - lo;
+    const VolumeCamera cam = lookAt(c + Vec3(-0.9, 0.7, -1.4) * norm(e), c, 512, 512);
+    for (int shade = 0; shade < 2; ++shade) {
+      VolumeRenderOptions opt;
+      opt.sampleDistance = 0.5 * std::min({std::fabs(vv.g.spacing[0]), std::fabs(vv.g.spacing[1]),
+                                           std::fabs(vv.g.spacing[2])});
+      opt.shade = shade;
+      dev.render(vv.g, tf, cam, opt);  // compiles / warms up
+      std::vector<double> tc, td, tk;
+      VolumeImage a, b;
+      for (int k = 0; k < 3; ++k) {
+        a = renderVolume(vol, vv.g, tf, cam, opt);
+        std::vector<ocl::KernelTiming> kt;
+        b = dev.render(vv.g, tf, cam, opt, &kt);
+        tc.push_back(a.ms);
+        td.push_back(b.ms);
+        double kms = 0;
+        for (const auto& x : kt)
+          if (x.kernel.rfind("mt_volume_march", 0) == 0) kms += x.ms;
+        tk.push_back(kms);
+      }
+      size_t differing = 0;
+      const double d = maxDiff(a, b, &differing);
+      std::printf("[ opencl   ] %-8s %s 512x512: cpu %.1f ms, device %.1f ms (kernel %.1f ms), %.2f Msamples, "
+                  "max diff %.3g\n",
+                  vv.name.c_str(), shade ? "shaded  " : "unshaded", median3(tc), median3(td), median3(tk),
+                  double(a.samples) * 1e-6, d);
+      EXPECT_LE(d, 1e-4);
+      EXPECT_EQ(a.samples, b.samples);
+    }
+  }
+}
