@@ -483,8 +483,9 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
             rows.append(dict(run_embree(tris, frames, cam, res.get("reference", {}), et), backend="cpu",
                              device=f"host, {et} threads"))
         for r in rows:
-            r.update(scene=name, triangles=int(tris.shape[0]), frames=len(frames), width=cam["width"],
-                     height=cam["height"], threads=res["threads"])
+            # image_* keys: "height" is the tree's height (rays_bench's rows)
+            r.update(scene=name, triangles=int(tris.shape[0]), frames=len(frames), image_width=cam["width"],
+                     image_height=cam["height"], threads=res["threads"])
             r["mrays_per_s"] = r["rays"] / r["render_ms"] / 1e3 if r["render_ms"] else None
         ref = {r["test"]: r for r in rows if r["method"] == "sah" and r["traversal"] == "stack"
                and r.get("backend", "cpu") == "cpu"}
