@@ -391,6 +391,8 @@ def summary_rows(rows: list) -> list:
     for sc in scenes_seen:
         rs = [r for r in rows if r["scene"] == sc and r.get("backend", "cpu") == "cpu"
               and r["test"] in ("mt", "embree-float")]
+        if not rs:  # --backend opencl: no CPU rows to summarise
+            continue
 
         def get(m, t, k):
             v = [r.get(k) for r in rs if r["method"] == m and r["traversal"] == t]
@@ -562,9 +564,10 @@ def main(argv=None) -> int:
     shown = [dict(r, **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()}) for r in rows]
     print(table(shown, COLS))
     summ = summary_rows(rows)
-    print("\nSpeed-ups over the SAH kd-tree with a stack (x, > 1 = faster), Moller-Trumbore rows, "
-          f"{args.clock} clock:")
-    print(table(summ, SUMMARY_COLS))
+    if summ:  # none with --backend opencl (no CPU rows)
+        print("\nSpeed-ups over the SAH kd-tree with a stack (x, > 1 = faster), Moller-Trumbore rows, "
+              f"{args.clock} clock:")
+        print(table(summ, SUMMARY_COLS))
     print(f"wrote {os.path.relpath(args.json)}")
     if args.md:
         with open(args.md, "w") as f:
