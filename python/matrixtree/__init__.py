@@ -17,11 +17,11 @@ True
 from matrixtree_vtk import vtkMatrixTreeVersion
 
 from matrixtree import scenes
-from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb, time_frames
+from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb, time_frames, tree_mesh
 from matrixtree.grids import read_grid
 from matrixtree.locator import CellLocator
 from matrixtree.volume import default_transfer_functions, frame_camera, read_volume, render_volume
 
 __version__ = vtkMatrixTreeVersion.GetVersion()
 
-__all__ = ["CellLocator", "MatrixTree", "read_grid", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "time_frames", "__version__"]
+__all__ = ["CellLocator", "MatrixTree", "read_grid", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "time_frames", "tree_mesh", "__version__"]

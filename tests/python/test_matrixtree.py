@@ -225,3 +225,31 @@ def test_time_frames_rebuilds_every_frame_and_matches_single_renders():
         matrixtree.time_frames([frames[0], scenes.default_scene(0.3)], progress=False)
     with pytest.raises(ValueError, match="unknown method"):
         matrixtree.time_frames(frames, methods=("bvh",), progress=False)
+
+
+def test_tree_mesh_boxes_cover_every_triangle():
+    bunny = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
+    everything = matrixtree.tree_mesh(bunny)
+    h = int(everything.field_data["tree_height"][0])
+    assert sorted(set(everything.cell_data["level"])) == list(range(h + 1))
+    root = everything.extract_cells(np.flatnonzero(everything.cell_data["level"] == 0))
+    assert root.n_cells == 1 and int(root.cell_data["cell_count"][0]) == bunny.GetNumberOfPolys()
+    leaves = matrixtree.tree_mesh(bunny, levels=-1)
+    assert set(leaves.cell_data["level"]) == {h} and np.all(leaves.cell_data["cell_count"] >= 1)
+    # brute force: every triangle's centroid lies in (the closed box of) some leaf
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    pts = vtk_to_numpy(bunny.GetPoints().GetData())
+    tri = vtk_to_numpy(bunny.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+    cent = pts[tri].mean(axis=1)
+    lo = np.array([leaves.get_cell(i).bounds[0::2] for i in range(leaves.n_cells)])
+    hi = np.array([leaves.get_cell(i).bounds[1::2] for i in range(leaves.n_cells)])
+    sample = cent[:: max(1, len(cent) // 2000)]
+    inside = np.array([np.any(np.all((c >= lo - 1e-12) & (c <= hi + 1e-12), axis=1)) for c in sample])
+    assert inside.all()
+    one = matrixtree.tree_mesh(bunny, tree="kdtree", levels=(1, 2))
+    assert set(one.cell_data["level"]) <= {1, 2} and one.n_cells > 0
+    with pytest.raises(ValueError, match="levels"):
+        matrixtree.tree_mesh(bunny, levels=(3, 1))
+    with pytest.raises(TypeError):
+        matrixtree.tree_mesh(42)
