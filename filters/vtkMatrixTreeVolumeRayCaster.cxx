@@ -269,6 +269,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     {
       mtree::VolumeBuildOptions bo;
       bo.sparse = !this->DenseStorage;
+      bo.compactIntegralFloat = true;  // integer-valued float scalars: 8/16-bit bricks, lossless
       bo.threads = this->NumberOfThreads;
       in.Built = false;
       switch (scalars->GetDataType())
@@ -295,6 +296,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       this->AllocatedBytes = static_cast<vtkIdType>(s.bytes);
       this->DenseBytes = static_cast<vtkIdType>(s.denseBytes);
       this->NumberOfNonFiniteScalars = static_cast<vtkIdType>(s.nonFinite);
+      this->VoxelStorage = static_cast<int>(s.storage);
     }
 
     mtree::VolumeCamera cam;
@@ -338,7 +340,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     for (size_t i = 0; i < img.rgba.size(); ++i)
     {
       const float v = std::min(1.f, std::max(0.f, img.rgba[i]));
-      up[i] = static_cast<unsigned char>(std::lround(v * 255.f));
+      up[i] = static_cast<unsigned char>(v * 255.f + 0.5f); // round half up, no libm call
     }
     output->GetPointData()->SetScalars(u8);
     output->GetPointData()->AddArray(f32);
@@ -394,4 +396,5 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "NumberOfSamples: " << this->NumberOfSamples << "\n";
   os << indent << "NumberOfSkips: " << this->NumberOfSkips << "\n";
   os << indent << "NumberOfNonFiniteScalars: " << this->NumberOfNonFiniteScalars << "\n";
+  os << indent << "VoxelStorage: " << this->VoxelStorage << "\n";
 }

@@ -181,6 +181,9 @@ public:
   vtkGetMacro(NumberOfSamples, vtkIdType);
   vtkGetMacro(NumberOfSkips, vtkIdType);
   vtkGetMacro(NumberOfNonFiniteScalars, vtkIdType);
+  /// How the voxels are held: 0 float blocks, 1 8-bit and 2 16-bit bricks with a 1-voxel apron
+  /// (8/16-bit integer scalars, or float scalars that hold only integers: lossless).
+  vtkGetMacro(VoxelStorage, int);
   ///@}
 
   /** Includes the transfer functions' modification times. */
@@ -233,6 +236,7 @@ protected:
   vtkIdType NumberOfSamples = 0;
   vtkIdType NumberOfSkips = 0;
   vtkIdType NumberOfNonFiniteScalars = 0;
+  int VoxelStorage = 0;
 
 private:
   vtkMatrixTreeVolumeRayCaster(const vtkMatrixTreeVolumeRayCaster&) = delete;

@@ -51,7 +51,7 @@ float TransferTable::maxOpacity(float a, float b) const {
 void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptions& opt, std::vector<float>& dense) {
   const auto start = std::chrono::steady_clock::now();
   const int threads = resolveThreads(opt.threads);
-  const int n[3] = {vox_.dim(0), vox_.dim(1), vox_.dim(2)};
+  const int n[3] = {n_[0], n_[1], n_[2]};
   const int nb[3] = {(n[0] - 1 + DIM - 1) / DIM, (n[1] - 1 + DIM - 1) / DIM, (n[2] - 1 + DIM - 1) / DIM};
   const int64_t nBricks = int64_t(nb[0]) * nb[1] * nb[2];
   const size_t sx = 1, sy = size_t(n[0]), sz = size_t(n[0]) * n[1];
@@ -108,6 +108,42 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
     visibleCells += vis;
   }
 
+  uint32_t marked = 0;
+  for (uint8_t m : marks) marked += m;
+  const uint32_t blockVolume = vox_.desc().blockVolume;
+  const uint32_t blocksDense = static_cast<uint32_t>(vox_.pointerCount());
+  brickPtr_.clear();
+  b8_.clear();
+  b16_.clear();
+  if (storage_ != VoxelStorage::Float32) {
+    // Apron bricks in the input's width: brick b holds voxels [DIM b, DIM b + DIM] per axis
+    // (clamped at the far faces), i.e. every corner of its cells. Stored: the visible bricks.
+    brickPtr_.assign(size_t(nBricks), MT_NULL);
+    uint32_t count = 0;
+    for (int64_t b = 0; b < nBricks; ++b)
+      if (!opt.sparse || l0.occ[size_t(b)]) brickPtr_[size_t(b)] = count++;
+    const size_t total = size_t(count) * BRICK_VOLUME;
+    if (storage_ == VoxelStorage::UInt8) b8_.assign(total, 0);
+    else b16_.assign(total, 0);
+    const float off = offset_;
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int64_t b = 0; b < nBricks; ++b) {
+      const uint32_t s = brickPtr_[size_t(b)];
+      if (s == MT_NULL) continue;
+      const int o[3] = {int(b % nb[0]) * DIM, int((b / nb[0]) % nb[1]) * DIM, int(b / (int64_t(nb[0]) * nb[1])) * DIM};
+      const size_t base = size_t(s) * BRICK_VOLUME;
+      for (int k = 0; k < APRON; ++k)
+        for (int j = 0; j < APRON; ++j)
+          for (int i = 0; i < APRON; ++i) {
+            const float v = at(std::min(o[0] + i, n[0] - 1), std::min(o[1] + j, n[1] - 1), std::min(o[2] + k, n[2] - 1));
+            const size_t e = base + size_t(k) * APRON * APRON + size_t(j) * APRON + size_t(i);
+            if (storage_ == VoxelStorage::UInt8) b8_[e] = static_cast<uint8_t>(v - off);
+            else b16_[e] = static_cast<uint16_t>(v - off);
+          }
+    }
+    stats_.bricksStored = count;
+    vox_.reset(1, 1, 1, 1, 0.f);  // the float matrix is not held in this layout
+  } else {
   // §5.1 steps 3-4: scan the marks into block indices, then fill the blocks from the dense copy.
   vox_.allocateMarked(marks.data(), threads);
   const MtSparseDesc& d = vox_.desc();
@@ -125,6 +161,7 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
           if (x < n[0] && y < n[1] && z < n[2])
             dst[(size_t(k) * e[1] + j) * e[0] + i] = at(x, y, z);
         }
+  }
   }
   ptr_ = vox_.pointers().data();
   data_ = vox_.data().data();
@@ -148,15 +185,19 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
   s.voxels = uint64_t(n[0]) * n[1] * n[2];
   s.cells = uint64_t(n[0] - 1) * (n[1] - 1) * (n[2] - 1);
   s.visibleCells = visibleCells;
-  s.blocksAllocated = d.numBlocks;
-  s.blocksDense = static_cast<uint32_t>(vox_.pointerCount());
+  s.blocksAllocated = marked;
+  s.blocksDense = blocksDense;
+  s.storage = storage_;
   s.bricks = static_cast<uint32_t>(nBricks);
   s.bricksVisible = 0;
   for (uint8_t o : levels_[0].occ) s.bricksVisible += o;  // (l0 dangles after the push_backs)
-  s.blockBytes = vox_.blockBytes();
+  s.blockBytes = uint64_t(marked) * blockVolume * sizeof(float);
   uint64_t levelBytes = 0;
   for (const LevelGrid& g : levels_) levelBytes += g.occ.size();
-  s.bytes = vox_.bytes() + (brickMin_.size() + brickMax_.size()) * sizeof(float) + levelBytes;
+  const uint64_t voxelBytes = storage_ == VoxelStorage::Float32
+                                  ? vox_.bytes()
+                                  : brickPtr_.size() * sizeof(uint32_t) + b8_.size() + b16_.size() * sizeof(uint16_t);
+  s.bytes = voxelBytes + (brickMin_.size() + brickMax_.size()) * sizeof(float) + levelBytes;
   s.denseBytes = s.voxels * sizeof(float);
   s.levels = levelCount();
   s.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -198,167 +239,291 @@ bool BlockSparseVolume::sample(double x, double y, double z, double& v) const {
 
 namespace {
 
-/// The block-sparse matrix's addressing, unpacked once per frame for the inner loop.
-struct BlockAddress {
+constexpr int LOG2DIM = BlockSparseVolume::LOG2DIM;
+constexpr int DIM = BlockSparseVolume::DIM;
+
+/// Per-frame constants of the marcher (copied by value into each ray's loop).
+struct Frame {
+  const BlockSparseVolume* vol;
+  int n[3];          // points per axis
+  int nb[3];         // level-0 bricks per axis
+  const float* table;  // premultiplied, opacity corrected for the step: 4 per entry, 16-byte aligned
+  float tlo, tscale;
+  int tlast;
+  float offset;      // added to an interpolated stored value
+  double dt;         // world units per step
+  float threshold;
+  double spacing[3];
+  double ambient, diffuse, specular, specularPower;
+};
+
+/// Fetch policies: enter(brick) resolves a brick's storage once; corners(local cell) reads the 8
+/// corners (x fastest) of a cell of that brick as floats (offset not applied). false: the cell
+/// reads an absent block, so it is invisible (opacity 0).
+
+/// UInt8/UInt16 apron bricks: every corner inside the brick, fixed offsets.
+template <typename T>
+struct ApronFetch {
+  static constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
+  const uint32_t* ptr;
+  const T* data;
+  int nb0, nb1;
+  const T* base = nullptr;
+  ApronFetch(const uint32_t* p, const T* d, int n0, int n1) : ptr(p), data(d), nb0(n0), nb1(n1) {}
+  bool enter(int bi, int bj, int bk) {
+    const uint32_t b = ptr[(size_t(bk) * nb1 + bj) * nb0 + bi];
+    if (b == MT_NULL) return false;
+    base = data + size_t(b) * BlockSparseVolume::BRICK_VOLUME;
+    return true;
+  }
+  bool corners(int lx, int ly, int lz, float c[8]) const {
+    const T* p = base + (lx + SY * ly + SZ * lz);
+    c[0] = float(p[0]);
+    c[1] = float(p[1]);
+    c[2] = float(p[SY]);
+    c[3] = float(p[SY + 1]);
+    c[4] = float(p[SZ]);
+    c[5] = float(p[SZ + 1]);
+    c[6] = float(p[SZ + SY]);
+    c[7] = float(p[SZ + SY + 1]);
+    return true;
+  }
+};
+
+/// Float32 block-sparse matrix (no apron): on entry, the brick's block and its 7 neighbours
+/// towards +x/+y/+z; a cell whose corners all lie in the brick's block (7/8 per axis) reads them
+/// at fixed offsets, the others pick each corner's block by the carry of its local index.
+struct FloatFetch {
   const uint32_t* ptr;
   const float* data;
-  int lb0, lb1, lb2, m0, m1, m2, pd0, pd1;
+  int lb0, lb1, lb2, pd0, pd1, pd2, e0, e1, e2;
   uint32_t bv;
-  explicit BlockAddress(const BlockSparseMatrix<float>& m)
+  const float* nbr[8] = {nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
+  explicit FloatFetch(const BlockSparseMatrix<float>& m)
       : ptr(m.pointers().data()), data(m.data().data()), lb0(m.desc().logBlock[0]), lb1(m.desc().logBlock[1]),
-        lb2(m.desc().logBlock[2]), m0((1 << lb0) - 1), m1((1 << lb1) - 1), m2((1 << lb2) - 1),
-        pd0(m.desc().ptrDims[0]), pd1(m.desc().ptrDims[1]), bv(m.desc().blockVolume) {}
-  /// BlockSparseVolume::cellCorners, with the 8 corners addressed per axis.
-  bool corners(int i, int j, int k, float c[8]) const {
-    const int bx0 = i >> lb0, by0 = j >> lb1, bz0 = k >> lb2;
-    const int bx1 = (i + 1) >> lb0, by1 = (j + 1) >> lb1, bz1 = (k + 1) >> lb2;
-    const int lx0 = i & m0, ly0 = j & m1, lz0 = k & m2;
-    if (((bx0 ^ bx1) | (by0 ^ by1) | (bz0 ^ bz1)) == 0) {
-      const uint32_t b = ptr[(size_t(bz0) * pd1 + by0) * pd0 + bx0];
-      if (b == MT_NULL) return false;
-      const float* p = data + size_t(b) * bv + ((lz0 << (lb0 + lb1)) | (ly0 << lb0) | lx0);
-      const int sy = 1 << lb0, sz = 1 << (lb0 + lb1);
+        lb2(m.desc().logBlock[2]), pd0(m.desc().ptrDims[0]), pd1(m.desc().ptrDims[1]), pd2(m.desc().ptrDims[2]),
+        e0((1 << lb0) - 1), e1((1 << lb1) - 1), e2((1 << lb2) - 1), bv(m.desc().blockVolume) {}
+  bool enter(int bi, int bj, int bk) {
+    // A block edge below DIM only happens on an axis that has a single block: brick = block.
+    for (int n = 0; n < 8; ++n) {
+      const int x = bi + (n & 1), y = bj + ((n >> 1) & 1), z = bk + (n >> 2);
+      const uint32_t b = (x < pd0 && y < pd1 && z < pd2) ? ptr[(size_t(z) * pd1 + y) * pd0 + x] : MT_NULL;
+      nbr[n] = b == MT_NULL ? nullptr : data + size_t(b) * bv;
+    }
+    return nbr[0] != nullptr;  // every cell of the brick has a corner in its own block
+  }
+  bool corners(int lx, int ly, int lz, float c[8]) const {
+    const int sy = 1 << lb0, sz = 1 << (lb0 + lb1);
+    if (lx < e0 && ly < e1 && lz < e2) {
+      const float* p = nbr[0] + ((lz << (lb0 + lb1)) | (ly << lb0) | lx);
       c[0] = p[0]; c[1] = p[1]; c[2] = p[sy]; c[3] = p[sy + 1];
       c[4] = p[sz]; c[5] = p[sz + 1]; c[6] = p[sz + sy]; c[7] = p[sz + sy + 1];
       return true;
     }
-    const int bx[2] = {bx0, bx1}, by[2] = {by0, by1}, bz[2] = {bz0, bz1};
-    const int lx[2] = {lx0, (i + 1) & m0}, ly[2] = {ly0 << lb0, ((j + 1) & m1) << lb0},
-              lz[2] = {lz0 << (lb0 + lb1), ((k + 1) & m2) << (lb0 + lb1)};
+    const int cx = lx == e0, cy = ly == e1, cz = lz == e2;
+    const int ox[2] = {lx, (lx + 1) & e0}, oy[2] = {ly << lb0, ((ly + 1) & e1) << lb0},
+              oz[2] = {lz << (lb0 + lb1), ((lz + 1) & e2) << (lb0 + lb1)};
     for (int n = 0; n < 8; ++n) {
       const int dx = n & 1, dy = (n >> 1) & 1, dz = n >> 2;
-      const uint32_t b = ptr[(size_t(bz[dz]) * pd1 + by[dy]) * pd0 + bx[dx]];
-      if (b == MT_NULL) return false;
-      c[n] = data[size_t(b) * bv + (lz[dz] | ly[dy] | lx[dx])];
+      const float* b = nbr[(dx & cx) | ((dy & cy) << 1) | ((dz & cz) << 2)];
+      if (!b) return false;
+      c[n] = b[oz[dz] | oy[dy] | ox[dx]];
     }
     return true;
   }
 };
 
-struct MarchContext {
-  const BlockSparseVolume* vol;
-  const TransferTable* tf;
-  const float* table;  // premultiplied, opacity corrected for the step: 4 per entry
-  int n[3];
-  double dt;
-  double threshold;
-  double spacing[3];
-  double ambient, diffuse, specular, specularPower;
+template <typename R>
+inline R lerp8(const float c[8], R fx, R fy, R fz) {
+  const R x00 = c[0] + fx * (c[1] - c[0]), x10 = c[2] + fx * (c[3] - c[2]);
+  const R x01 = c[4] + fx * (c[5] - c[4]), x11 = c[6] + fx * (c[7] - c[6]);
+  const R y0 = x00 + fy * (x10 - x00), y1 = x01 + fy * (x11 - x01);
+  return y0 + fz * (y1 - y0);
+}
+
+/// Front-to-back accumulator: premultiplied colour and opacity.
+template <typename R>
+struct Acc {
+  R c[4] = {0, 0, 0, 0};
+  R alpha() const { return c[3]; }
+  void add(R r, R g, R b, R a) {
+    const R w = 1 - c[3];
+    c[0] += w * r;
+    c[1] += w * g;
+    c[2] += w * b;
+    c[3] += w * a;
+  }
+  void add(const float* e) { add(R(e[0]), R(e[1]), R(e[2]), R(e[3])); }
+  void store(float out[4]) const {
+    for (int ch = 0; ch < 4; ++ch) out[ch] = float(c[ch]);
+  }
 };
 
-struct Ray {
-  double o[3], d[3];  // index space; t is world length
+#if defined(__GNUC__)
+typedef float v4f __attribute__((vector_size(16)));
+/// float: the four channels in one SSE register, one multiply-add per sample.
+template <>
+struct Acc<float> {
+  v4f c = {0, 0, 0, 0};
+  float alpha() const { return c[3]; }
+  void add(const float* e) {
+    v4f v;
+    __builtin_memcpy(&v, e, sizeof v);
+    c += (1.f - c[3]) * v;
+  }
+  void add(float r, float g, float b, float a) {
+    const v4f v = {r, g, b, a};
+    c += (1.f - c[3]) * v;
+  }
+  void store(float out[4]) const { __builtin_memcpy(out, &c, sizeof c); }
 };
+#endif
 
-/// t where the ray leaves the index-space box [lo, hi] (the ray is inside it at some t).
-inline double exitT(const Ray& r, const double lo[3], const double hi[3]) {
+/// The shaded colour of a sample (headlight, two-sided), from the trilinear interpolant's gradient.
+template <typename R>
+inline void shadeSample(const Frame& F, const float cc[8], R fx, R fy, R fz, const float* e, const double viewDir[3],
+                        Acc<R>& acc) {
+  const R gx = (1 - fy) * (1 - fz) * (cc[1] - cc[0]) + fy * (1 - fz) * (cc[3] - cc[2]) +
+               (1 - fy) * fz * (cc[5] - cc[4]) + fy * fz * (cc[7] - cc[6]);
+  const R gy = (1 - fx) * (1 - fz) * (cc[2] - cc[0]) + fx * (1 - fz) * (cc[3] - cc[1]) +
+               (1 - fx) * fz * (cc[6] - cc[4]) + fx * fz * (cc[7] - cc[5]);
+  const R gz = (1 - fx) * (1 - fy) * (cc[4] - cc[0]) + fx * (1 - fy) * (cc[5] - cc[1]) +
+               (1 - fx) * fy * (cc[6] - cc[2]) + fx * fy * (cc[7] - cc[3]);
+  const R wx = gx / R(F.spacing[0]), wy = gy / R(F.spacing[1]), wz = gz / R(F.spacing[2]);
+  const R len = std::sqrt(wx * wx + wy * wy + wz * wz);
+  R r = e[0], g = e[1], b = e[2];
+  const R a = e[3];
+  if (len > 0) {
+    const R ndl = std::fabs(wx * R(viewDir[0]) + wy * R(viewDir[1]) + wz * R(viewDir[2])) / len;
+    const R s = R(F.ambient) + R(F.diffuse) * ndl;
+    const R spec = R(F.specular) * std::pow(ndl, R(F.specularPower)) * a;
+    r = r * s + spec;
+    g = g * s + spec;
+    b = b * s + spec;
+  }
+  acc.add(r, g, b, a);
+}
+
+inline int tableIndex(const Frame& F, float v) {
+  const float x = (v - F.tlo) * F.tscale + 0.5f;
+  if (!(x > 0.f)) return 0;
+  const int i = static_cast<int>(x);
+  return i < F.tlast ? i : F.tlast;
+}
+
+/// The t where the index-space ray (o, d) leaves the box [lo, hi] (it is inside at some t).
+inline double exitT(const double o[3], const double d[3], const double lo[3], const double hi[3]) {
   double t = std::numeric_limits<double>::infinity();
   for (int a = 0; a < 3; ++a) {
-    if (r.d[a] > 0) t = std::min(t, (hi[a] - r.o[a]) / r.d[a]);
-    else if (r.d[a] < 0) t = std::min(t, (lo[a] - r.o[a]) / r.d[a]);
+    if (d[a] > 0) t = std::min(t, (hi[a] - o[a]) / d[a]);
+    else if (d[a] < 0) t = std::min(t, (lo[a] - o[a]) / d[a]);
   }
   return t;
 }
 
-/// Marches one ray over samples k = 0..kEnd at t_k = t0 + k dt. Returns premultiplied RGBA.
-template <typename R, bool Skip, bool Shade>
-void march(const MarchContext& c, const Ray& ray, double t0, int64_t kEnd, const double viewDir[3], float out[4],
-           uint64_t& samplesOut, uint64_t& skipsOut) {
-  uint64_t samples = 0, skips = 0;  // locals: a counter behind a reference is stored every sample
-  const BlockSparseVolume& vol = *c.vol;
-  const BlockAddress addr(vol.voxels());
-  R A = 0, Cr = 0, Cg = 0, Cb = 0;
-  const R thr = static_cast<R>(c.threshold);
-  int64_t k = 0;
+/// Classifies and composites one sample of cell corners `cc` at fractions (fx, fy, fz).
+/// Returns true when the ray is opaque (early termination).
+template <typename R, bool Shade>
+inline bool composite(const Frame& F, const float cc[8], R fx, R fy, R fz, const double viewDir[3], Acc<R>& acc) {
+  const float v = float(lerp8<R>(cc, fx, fy, fz) + R(F.offset));
+  const float* e = F.table + 4 * tableIndex(F, v);
+  if (Shade) {
+    if (!(e[3] > 0.f)) return false;
+    shadeSample<R>(F, cc, fx, fy, fz, e, viewDir, acc);
+  } else {
+    // No branch on a transparent entry (it is 0 0 0 0: adding (1 - A) * 0 leaves the sums
+    // exactly as they are), so a ray crossing the opacity threshold costs no mispredictions.
+    acc.add(e);
+  }
+  return acc.alpha() >= R(F.threshold);
+}
+
+/// Marches one ray over samples k = 0..kEnd at t_k = t0 + k dt, position o + d t_k (index
+/// space, double, the arithmetic of opencl/volume.cl, so both back ends see the same samples).
+/// The ray is walked brick by brick: at sample k the brick is looked up (and, skipping, its
+/// coarsest empty ancestor is left at its exit); samples up to the brick's exit then read the
+/// brick's storage directly, without clamping or pointer-matrix reads.
+template <typename R, typename Fetch, bool Skip, bool Shade>
+void march(const Frame& F, Fetch fetch, const double o[3], const double d[3], double t0, int64_t kEnd,
+           const double viewDir[3], float out[4], uint64_t& samplesOut, uint64_t& skipsOut) {
+  const BlockSparseVolume& vol = *F.vol;
+  uint64_t samples = 0, skips = 0;
+  Acc<R> acc;
+  const double dt = F.dt;
   const int levels = vol.levelCount();
+  int64_t k = 0;
   while (k <= kEnd) {
-    int64_t kStop = k;  // sample k..kStop, then look again
-    if (Skip) {
-      const double t = t0 + double(k) * c.dt;
+    const double t = t0 + double(k) * dt;
+    int cell[3];
+    for (int a = 0; a < 3; ++a) {
       double f;
-      const int ci = clampCell(ray.o[0] + ray.d[0] * t, c.n[0], f);
-      const int cj = clampCell(ray.o[1] + ray.d[1] * t, c.n[1], f);
-      const int ck = clampCell(ray.o[2] + ray.d[2] * t, c.n[2], f);
-      const int bi = ci >> BlockSparseVolume::LOG2DIM, bj = cj >> BlockSparseVolume::LOG2DIM,
-                bk = ck >> BlockSparseVolume::LOG2DIM;
-      // Coarsest empty ancestor (top-down over the matrix-tree levels); -1 if the brick is visible.
-      int empty = -1;
-      for (int L = levels - 1; L >= 0; --L)
-        if (!vol.nodeVisible(L, bi >> L, bj >> L, bk >> L)) {
-          empty = L;
-          break;
-        }
-      const int L = empty < 0 ? 0 : empty;
-      const double edge = double(BlockSparseVolume::DIM << L);
-      const double lo[3] = {double(bi >> L) * edge, double(bj >> L) * edge, double(bk >> L) * edge};
-      const double hi[3] = {lo[0] + edge, lo[1] + edge, lo[2] + edge};
-      const double tx = exitT(ray, lo, hi);
-      // Last sample at or before the node's exit (floor: never jump over a sample that might
-      // lie beyond it in a visible node; an extra sample in an empty node adds exactly 0).
-      const double kx = std::floor((tx - t0) / c.dt);
-      const int64_t kLast = kx >= double(kEnd) ? kEnd : std::max<int64_t>(k, static_cast<int64_t>(kx));
-      if (empty >= 0) {
-        ++skips;
-        k = std::max(k + 1, kLast);
-        continue;
-      }
-      kStop = kLast;
+      cell[a] = clampCell(o[a] + d[a] * t, F.n[a], f);
     }
-    for (; k <= kStop; ++k) {
-      const double t = t0 + double(k) * c.dt;
-      double fx, fy, fz;
-      const int ci = clampCell(ray.o[0] + ray.d[0] * t, c.n[0], fx);
-      const int cj = clampCell(ray.o[1] + ray.d[1] * t, c.n[1], fy);
-      const int ck = clampCell(ray.o[2] + ray.d[2] * t, c.n[2], fz);
+    const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
+    // Coarsest empty ancestor (levels are ORs of their children: climb while empty).
+    int empty = -1;
+    if (Skip && !vol.nodeVisible(0, bi, bj, bk)) {
+      empty = 0;
+      while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
+        ++empty;
+    }
+    const int L = empty < 0 ? 0 : empty;
+    const double edge = double(DIM << L);
+    const double lo[3] = {double(bi >> L) * edge, double(bj >> L) * edge, double(bk >> L) * edge};
+    const double hi[3] = {lo[0] + edge, lo[1] + edge, lo[2] + edge};
+    // Last sample at or before the node's exit (floor: never jump over a sample that might lie
+    // beyond it in a visible node; an extra sample in an empty node adds exactly 0).
+    const double kx = std::floor((exitT(o, d, lo, hi) - t0) / dt);
+    const int64_t kLast = kx >= double(kEnd) ? kEnd : std::max<int64_t>(k, static_cast<int64_t>(kx));
+    if (empty >= 0) {
+      ++skips;
+      k = std::max(k + 1, kLast);
+      continue;
+    }
+    if (!fetch.enter(bi, bj, bk)) {  // an absent brick (not skipping): every cell is invisible
+      k = kLast + 1;
+      continue;
+    }
+    const int ox = bi << LOG2DIM, oy = bj << LOG2DIM, oz = bk << LOG2DIM;
+    const unsigned mx = unsigned(std::min(DIM - 1, F.n[0] - 2 - ox)), my = unsigned(std::min(DIM - 1, F.n[1] - 2 - oy)),
+                   mz = unsigned(std::min(DIM - 1, F.n[2] - 2 - oz));
+    double kd = double(k);
+    for (; k <= kLast; ++k, kd += 1.0) {
+      const double ts = t0 + kd * dt;
+      const double x = o[0] + d[0] * ts, y = o[1] + d[1] * ts, z = o[2] + d[2] * ts;
+      const int ix = static_cast<int>(x), iy = static_cast<int>(y), iz = static_cast<int>(z);
+      const int lx = ix - ox, ly = iy - oy, lz = iz - oz;
       float cc[8];
-      if (!addr.corners(ci, cj, ck, cc)) continue;
-      ++samples;
-      const R v = trilinear<R>(cc, R(fx), R(fy), R(fz));
-      const float* e = c.table + 4 * c.tf->index(v);
-      const R a = e[3];
-      if (a <= 0) continue;
-      R r = e[0], g = e[1], b = e[2];
-      if (Shade) {
-        // Gradient of the trilinear interpolant (index space), then to world space.
-        const R gx = (1 - fy) * (1 - fz) * (cc[1] - cc[0]) + fy * (1 - fz) * (cc[3] - cc[2]) +
-                     (1 - fy) * fz * (cc[5] - cc[4]) + fy * fz * (cc[7] - cc[6]);
-        const R gy = (1 - fx) * (1 - fz) * (cc[2] - cc[0]) + fx * (1 - fz) * (cc[3] - cc[1]) +
-                     (1 - fx) * fz * (cc[6] - cc[4]) + fx * fz * (cc[7] - cc[5]);
-        const R gz = (1 - fx) * (1 - fy) * (cc[4] - cc[0]) + fx * (1 - fy) * (cc[5] - cc[1]) +
-                     (1 - fx) * fy * (cc[6] - cc[2]) + fx * fy * (cc[7] - cc[3]);
-        const R wx = gx / R(c.spacing[0]), wy = gy / R(c.spacing[1]), wz = gz / R(c.spacing[2]);
-        const R len = std::sqrt(wx * wx + wy * wy + wz * wz);
-        if (len > 0) {
-          // Headlight: light and viewer along the ray; two-sided (|n.l|).
-          const R ndl = std::fabs(wx * R(viewDir[0]) + wy * R(viewDir[1]) + wz * R(viewDir[2])) / len;
-          const R s = R(c.ambient) + R(c.diffuse) * ndl;
-          const R spec = R(c.specular) * std::pow(ndl, R(c.specularPower)) * a;
-          r = r * s + spec;
-          g = g * s + spec;
-          b = b * s + spec;
-        }
+      R fx, fy, fz;
+      if (((unsigned(lx) > mx) | (unsigned(ly) > my) | (unsigned(lz) > mz)) == 0) {
+        // In the brick and in [0, n-1): clampCell's cell is the truncation (x in (-1, 0)
+        // truncates to 0 with fraction 0) and its fraction x - cell.
+        fx = R(std::max(x - double(ix), 0.0));
+        fy = R(std::max(y - double(iy), 0.0));
+        fz = R(std::max(z - double(iz), 0.0));
+        if (!fetch.corners(lx, ly, lz, cc)) continue;
+      } else {
+        // Round-off put the sample in a neighbouring brick, or it needs clamping: general path.
+        double f[3];
+        const int ci = clampCell(x, F.n[0], f[0]), cj = clampCell(y, F.n[1], f[1]), ck = clampCell(z, F.n[2], f[2]);
+        if (!vol.cellCorners(ci, cj, ck, cc)) continue;
+        fx = R(f[0]), fy = R(f[1]), fz = R(f[2]);
       }
-      const R w = 1 - A;
-      Cr += w * r;
-      Cg += w * g;
-      Cb += w * b;
-      A += w * a;
-      if (A >= thr) {
+      ++samples;
+      if (composite<R, Shade>(F, cc, fx, fy, fz, viewDir, acc)) {
         k = kEnd + 1;
         break;
       }
     }
+    k = std::max(k, kLast + 1);
   }
   samplesOut += samples;
   skipsOut += skips;
-  out[0] = float(Cr);
-  out[1] = float(Cg);
-  out[2] = float(Cb);
-  out[3] = float(A);
+  acc.store(out);
 }
 
-template <typename R, bool Skip, bool Shade>
-void marchImage(const MarchContext& c, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
+template <typename R, typename Fetch, bool Skip, bool Shade>
+void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
                 double aspect, int threads, std::vector<float>& rgba, uint64_t& samples, uint64_t& skips,
                 uint64_t& rays) {
   const Vec3 pos = cam.position;
@@ -366,60 +531,88 @@ void marchImage(const MarchContext& c, const VolumeGeometry& geo, const VolumeCa
   const Vec3 right = normalized(cross(fwd, cam.viewUp));
   const Vec3 up = cross(right, fwd);
   const double th = std::tan(cam.viewAngle * 0.5 * 3.14159265358979323846 / 180.0);
-  const double hiIdx[3] = {double(c.n[0] - 1), double(c.n[1] - 1), double(c.n[2] - 1)};
+  const double hiIdx[3] = {double(F.n[0] - 1), double(F.n[1] - 1), double(F.n[2] - 1)};
+  constexpr int TILE = 8;
+  const int tx = (w + TILE - 1) / TILE, ty = (h + TILE - 1) / TILE;
   uint64_t sTotal = 0, kTotal = 0, rTotal = 0;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : sTotal, kTotal, rTotal)
-  for (int y = 0; y < h; ++y) {
-    for (int x = 0; x < w; ++x) {
-      float* out = rgba.data() + (size_t(y) * w + x) * 4;
-      const double nx = 2.0 * (x + 0.5) / w - 1.0, ny = 2.0 * (y + 0.5) / h - 1.0;
-      Vec3 o, d;
-      if (cam.parallel) {
-        o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
-        d = fwd;
-      } else {
-        o = pos;
-        d = normalized(fwd + right * (nx * th * aspect) + up * (ny * th));
-      }
-      Ray ray;
-      double t0 = 0, t1 = std::numeric_limits<double>::infinity();
-      bool miss = false;
-      for (int a = 0; a < 3; ++a) {
-        ray.o[a] = (o[a] - geo.origin[a]) / geo.spacing[a];
-        ray.d[a] = d[a] / geo.spacing[a];
-        if (ray.d[a] == 0) {
-          if (ray.o[a] < 0 || ray.o[a] > hiIdx[a]) miss = true;
+  for (int tile = 0; tile < tx * ty; ++tile) {
+    const int x0 = (tile % tx) * TILE, y0 = (tile / tx) * TILE;
+    const int x1 = std::min(w, x0 + TILE), y1 = std::min(h, y0 + TILE);
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x) {
+        float* out = rgba.data() + (size_t(y) * w + x) * 4;
+        const double nx = 2.0 * (x + 0.5) / w - 1.0, ny = 2.0 * (y + 0.5) / h - 1.0;
+        Vec3 o, d;
+        if (cam.parallel) {
+          o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
+          d = fwd;
+        } else {
+          o = pos;
+          d = normalized(fwd + right * (nx * th * aspect) + up * (ny * th));
+        }
+        double ro[3], rd[3];
+        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+        bool miss = false;
+        for (int a = 0; a < 3; ++a) {
+          ro[a] = (o[a] - geo.origin[a]) / geo.spacing[a];
+          rd[a] = d[a] / geo.spacing[a];
+          if (rd[a] == 0) {
+            if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
+            continue;
+          }
+          double ta = (0 - ro[a]) / rd[a], tb = (hiIdx[a] - ro[a]) / rd[a];
+          if (ta > tb) std::swap(ta, tb);
+          t0 = std::max(t0, ta);
+          t1 = std::min(t1, tb);
+        }
+        ++rTotal;
+        if (miss || !(t0 <= t1)) {
+          out[0] = out[1] = out[2] = out[3] = 0.f;
           continue;
         }
-        double ta = (0 - ray.o[a]) / ray.d[a], tb = (hiIdx[a] - ray.o[a]) / ray.d[a];
-        if (ta > tb) std::swap(ta, tb);
-        t0 = std::max(t0, ta);
-        t1 = std::min(t1, tb);
+        const double kx = std::floor((t1 - t0) / F.dt);
+        const int64_t kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
+        const double viewDir[3] = {d.x, d.y, d.z};  // the headlight: along the ray
+        march<R, Fetch, Skip, Shade>(F, fetch, ro, rd, t0, kEnd, viewDir, out, sTotal, kTotal);
       }
-      ++rTotal;
-      if (miss || !(t0 <= t1)) {
-        out[0] = out[1] = out[2] = out[3] = 0.f;
-        continue;
-      }
-      const double kx = std::floor((t1 - t0) / c.dt);
-      const int64_t kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
-      // Light direction in world space for the headlight: the ray direction.
-      const double viewDir[3] = {d.x, d.y, d.z};
-      march<R, Skip, Shade>(c, ray, t0, kEnd, viewDir, out, sTotal, kTotal);
-    }
   }
   samples += sTotal;
   skips += kTotal;
   rays += rTotal;
 }
 
+template <typename R, typename Fetch>
+void dispatch(bool skip, bool shade, const Frame& F, const Fetch& fetch, const VolumeGeometry& geo,
+              const VolumeCamera& cam, int w, int h, double aspect, int threads, VolumeImage& img,
+              std::vector<float>& rgba) {
+  if (skip && shade)
+    marchImage<R, Fetch, true, true>(F, fetch, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
+  else if (skip)
+    marchImage<R, Fetch, true, false>(F, fetch, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
+  else if (shade)
+    marchImage<R, Fetch, false, true>(F, fetch, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
+  else
+    marchImage<R, Fetch, false, false>(F, fetch, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
+}
+
 template <typename R>
-void dispatch(bool skip, bool shade, const MarchContext& c, const VolumeGeometry& geo, const VolumeCamera& cam,
-              int w, int h, double aspect, int threads, VolumeImage& img, std::vector<float>& rgba) {
-  if (skip && shade) marchImage<R, true, true>(c, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
-  else if (skip) marchImage<R, true, false>(c, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
-  else if (shade) marchImage<R, false, true>(c, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
-  else marchImage<R, false, false>(c, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
+void dispatchStorage(const BlockSparseVolume& vol, bool skip, bool shade, const Frame& F, const VolumeGeometry& geo,
+                     const VolumeCamera& cam, int w, int h, double aspect, int threads, VolumeImage& img,
+                     std::vector<float>& rgba) {
+  const int nb0 = vol.levelDim(0, 0), nb1 = vol.levelDim(0, 1);
+  switch (vol.storage()) {
+    case VoxelStorage::UInt8:
+      dispatch<R>(skip, shade, F, ApronFetch<uint8_t>(vol.brickPointers().data(), vol.bricks8().data(), nb0, nb1), geo,
+                  cam, w, h, aspect, threads, img, rgba);
+      break;
+    case VoxelStorage::UInt16:
+      dispatch<R>(skip, shade, F, ApronFetch<uint16_t>(vol.brickPointers().data(), vol.bricks16().data(), nb0, nb1),
+                  geo, cam, w, h, aspect, threads, img, rgba);
+      break;
+    default:
+      dispatch<R>(skip, shade, F, FloatFetch(vol.voxels()), geo, cam, w, h, aspect, threads, img, rgba);
+  }
 }
 
 }  // namespace
@@ -455,20 +648,24 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
     table[4 * size_t(i) + 3] = static_cast<float>(a);
   }
 
-  MarchContext c;
-  c.vol = &vol;
-  c.tf = &tf;
-  c.table = table.data();
+  Frame F;
+  F.vol = &vol;
   for (int a = 0; a < 3; ++a) {
-    c.n[a] = vol.dim(a);
-    c.spacing[a] = geo.spacing[a];
+    F.n[a] = vol.dim(a);
+    F.nb[a] = vol.levelDim(0, a);
+    F.spacing[a] = geo.spacing[a];
   }
-  c.dt = opt.sampleDistance;
-  c.threshold = opt.earlyTermination >= 1 ? 2.0 : std::max(0.0, opt.earlyTermination);
-  c.ambient = opt.ambient;
-  c.diffuse = opt.diffuse;
-  c.specular = opt.specular;
-  c.specularPower = opt.specularPower;
+  F.table = table.data();
+  F.tlo = tf.indexLo();
+  F.tscale = tf.indexScale();
+  F.tlast = tf.lastIndex();
+  F.offset = vol.storageOffset();
+  F.dt = opt.sampleDistance;
+  F.threshold = opt.earlyTermination >= 1 ? 2.f : float(std::max(0.0, opt.earlyTermination));
+  F.ambient = opt.ambient;
+  F.diffuse = opt.diffuse;
+  F.specular = opt.specular;
+  F.specularPower = opt.specularPower;
 
   VolumeImage img;
   img.width = cam.width;
@@ -478,8 +675,10 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   const double aspect = double(cam.width) / cam.height;
   const int threads = resolveThreads(opt.threads);
   std::vector<float> small(size_t(w) * h * 4);
-  if (opt.doublePrecision) dispatch<double>(opt.emptySpaceSkipping, opt.shade, c, geo, cam, w, h, aspect, threads, img, small);
-  else dispatch<float>(opt.emptySpaceSkipping, opt.shade, c, geo, cam, w, h, aspect, threads, img, small);
+  if (opt.doublePrecision)
+    dispatchStorage<double>(vol, opt.emptySpaceSkipping, opt.shade, F, geo, cam, w, h, aspect, threads, img, small);
+  else
+    dispatchStorage<float>(vol, opt.emptySpaceSkipping, opt.shade, F, geo, cam, w, h, aspect, threads, img, small);
 
   if (w == cam.width && h == cam.height) {
     img.rgba = std::move(small);

@@ -321,5 +321,6 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         "bytes": caster.GetAllocatedBytes(),
         "dense_bytes": caster.GetDenseBytes(),
         "non_finite": caster.GetNumberOfNonFiniteScalars(),
+        "storage": ("float32", "uint8", "uint16")[caster.GetVoxelStorage()],
     }
     return img, stats

@@ -2,7 +2,12 @@
 // replacing the matrix-tree CSR encoding by block-sparse matrices made ray casting 75-280%
 // faster, because a sample costs two memory reads: the pointer matrix, then the block).
 //
-//   BlockSparseVolume  the scalar field as a BlockSparseMatrix<float> of DIM^3-voxel blocks.
+//   BlockSparseVolume  the scalar field, block-sparse, in one of two layouts (VoxelStorage):
+//                      Float32: a BlockSparseMatrix<float> of DIM^3-voxel blocks (any input type);
+//                      UInt8/UInt16 (8/16-bit integer input, the default for it): bricks of DIM^3
+//                      cells stored as (DIM+1)^3 voxels in the input's width, i.e. with a 1-voxel
+//                      apron towards +x/+y/+z, so all 8 corners of every cell of a brick are in
+//                      the brick (no neighbour lookup per sample); signed input is offset.
 //                      Only blocks that a visible sample can read are allocated ("model only
 //                      what a scene requires"): a cell (8 voxels) is visible when the opacity
 //                      function is non-zero somewhere on [min, max] of its corners; every voxel
@@ -13,14 +18,17 @@
 //   TransferTable      post-classification lookup table (colour + opacity per unit length) with
 //                      O(1) range-max opacity queries (a sparse table), used to classify cells.
 //   renderVolume       ray marching with trilinear interpolation, front-to-back compositing with
-//                      opacity corrected for the step length, early ray termination, optional
-//                      gradient shading, hierarchical empty-space skipping, OpenMP over rows.
+//                      opacity corrected for the step length (premultiplied table, once per frame),
+//                      early ray termination, optional gradient shading, hierarchical empty-space
+//                      skipping, OpenMP over 8x8-pixel tiles. A ray is walked brick by brick: on
+//                      entry the brick's storage is resolved once, then samples inside it need no
+//                      clamping, no bounds checks and no pointer-matrix reads.
 //
 // Exactness of the skipping: a cell that is not visible yields opacity exactly 0 at every sample
 // (the interpolated value lies in [min, max] of the corners, the table lookup is monotone, and
 // the range query is widened by one entry for round-off), so skipping it, or reading it from an
-// absent block, changes nothing. Samples sit at t_k = tEnter + k * step in both modes, so
-// rendering with and without skipping gives the same image bit for bit.
+// absent block, changes nothing. Sample k sits at P0 + k * S (index space, computed the same way
+// in both modes), so rendering with and without skipping gives the same image bit for bit.
 #pragma once
 
 #include <algorithm>
@@ -61,6 +69,10 @@ class TransferTable {
     return i < last_ ? i : last_;
   }
   int index(double v) const { return index(static_cast<float>(v)); }
+  /// The three numbers index() uses, for copying into an inner loop.
+  float indexLo() const { return flo_; }
+  float indexScale() const { return fscale_; }
+  int lastIndex() const { return last_; }
   /// Largest alpha over every entry a scalar in [a, b] can map to, widened by one entry each
   /// side for interpolation round-off. O(1) (sparse table of range maxima).
   float maxOpacity(float a, float b) const;
@@ -75,19 +87,29 @@ class TransferTable {
 
 /// Build settings of a BlockSparseVolume.
 struct VolumeBuildOptions {
-  bool sparse = true;  // false: allocate every block (the dense reference, same code path)
-  int threads = 0;     // 0 = OpenMP's default
+  bool sparse = true;   // false: allocate every block (the dense reference, same code path)
+  bool compact = true;  // 8/16-bit integer input: keep its width, bricks with an apron (UInt8/UInt16)
+  /// Floating-point input whose values are all integers spanning at most 65535: store it as
+  /// UInt8/UInt16 too (lossless). Off by default: the OpenCL back end reads Float32 volumes only.
+  bool compactIntegralFloat = false;
+  int threads = 0;      // 0 = OpenMP's default
 };
+
+/// How the voxels are held (see the top of this file).
+enum class VoxelStorage : int { Float32 = 0, UInt8 = 1, UInt16 = 2 };
 
 /// Memory and classification statistics, the paper's currency.
 struct VolumeStats {
   uint64_t voxels = 0, cells = 0, visibleCells = 0;
-  uint32_t blocksAllocated = 0;  // voxel blocks holding a corner of a visible cell
+  uint32_t blocksAllocated = 0;  // DIM^3 voxel blocks holding a corner of a visible cell
   uint32_t blocksDense = 0;      // voxel blocks of the whole grid (the pointer matrix size)
   uint32_t bricksVisible = 0;    // level-0 bricks (DIM^3 cells) holding a visible cell
   uint32_t bricks = 0;
-  uint64_t blockBytes = 0;       // allocated blocks * DIM^3 * 4: the visible blocks' payload
-  uint64_t bytes = 0;            // everything held: blocks + pointer matrix + ranges + levels
+  uint32_t bricksStored = 0;     // UInt8/UInt16: apron bricks held (the visible ones); Float32: 0
+  VoxelStorage storage = VoxelStorage::Float32;
+  uint64_t blockBytes = 0;       // blocksAllocated * DIM^3 * 4: the visible blocks as float (the
+                                 // Float32 payload; the reference the memory target is set against)
+  uint64_t bytes = 0;            // everything held: voxels + pointers + ranges + levels
   uint64_t denseBytes = 0;       // voxels * 4: a dense float copy
   int levels = 0;                // matrix-tree levels above the blocks, level 0 included
   uint64_t nonFinite = 0;        // NaN/inf voxels replaced by the lowest finite value
@@ -107,8 +129,18 @@ class BlockSparseVolume {
   void build(const T* values, const int dims[3], const TransferTable& tf,
              const VolumeBuildOptions& opt = VolumeBuildOptions());
 
-  int dim(int a) const { return vox_.dim(a); }
+  int dim(int a) const { return n_[a]; }
+  VoxelStorage storage() const { return storage_; }
+  /// The Float32 layout's matrix (a 1x1x1 placeholder when the storage is UInt8/UInt16).
   const BlockSparseMatrix<float>& voxels() const { return vox_; }
+  /// UInt8/UInt16 layout: brick pointers (level-0 order, MT_NULL = absent), the bricks of
+  /// APRON^3 entries, and the offset added to a stored value (signed input).
+  static constexpr int APRON = DIM + 1;
+  static constexpr int BRICK_VOLUME = APRON * APRON * APRON;
+  const std::vector<uint32_t>& brickPointers() const { return brickPtr_; }
+  const std::vector<uint8_t>& bricks8() const { return b8_; }
+  const std::vector<uint16_t>& bricks16() const { return b16_; }
+  float storageOffset() const { return offset_; }
   const VolumeStats& stats() const { return stats_; }
   float minValue() const { return vmin_; }
   float maxValue() const { return vmax_; }
@@ -116,6 +148,18 @@ class BlockSparseVolume {
   /// The 8 corner values of cell (i, j, k) (x fastest: c[dx + 2 dy + 4 dz]). False when a
   /// corner's block is absent: such a cell is invisible, its samples have opacity 0.
   bool cellCorners(int i, int j, int k, float c[8]) const {
+    if (storage_ != VoxelStorage::Float32) {
+      const uint32_t b = brickPtr_[(size_t(k >> LOG2DIM) * levels_[0].n[1] + (j >> LOG2DIM)) * levels_[0].n[0] +
+                                   (i >> LOG2DIM)];
+      if (b == MT_NULL) return false;
+      const size_t o = size_t(b) * BRICK_VOLUME + (i & (DIM - 1)) + APRON * (j & (DIM - 1)) +
+                       APRON * APRON * (k & (DIM - 1));
+      for (int n = 0; n < 8; ++n) {
+        const size_t e = o + (n & 1) + APRON * ((n >> 1) & 1) + APRON * APRON * (n >> 2);
+        c[n] = (storage_ == VoxelStorage::UInt8 ? float(b8_[e]) : float(b16_[e])) + offset_;
+      }
+      return true;
+    }
     const MtSparseDesc& d = vox_.desc();
     const int m0 = (1 << d.logBlock[0]) - 1, m1 = (1 << d.logBlock[1]) - 1, m2 = (1 << d.logBlock[2]) - 1;
     if ((i & m0) != m0 && (j & m1) != m1 && (k & m2) != m2) {
@@ -159,6 +203,12 @@ class BlockSparseVolume {
   void classify(const TransferTable& tf, const VolumeBuildOptions& opt, std::vector<float>& dense);
 
   BlockSparseMatrix<float> vox_;
+  int n_[3] = {1, 1, 1};
+  VoxelStorage storage_ = VoxelStorage::Float32;
+  float offset_ = 0;
+  std::vector<uint32_t> brickPtr_;
+  std::vector<uint8_t> b8_;
+  std::vector<uint16_t> b16_;
   const uint32_t* ptr_ = nullptr;
   const float* data_ = nullptr;
   std::vector<LevelGrid> levels_;
@@ -247,6 +297,24 @@ void BlockSparseVolume::build(const T* values, const int dims[3], const Transfer
   }
   vmin_ = static_cast<float>(lo);
   vmax_ = static_cast<float>(hi);
+  for (int a = 0; a < 3; ++a) n_[a] = dims[a];
+  // 8/16-bit integers are held in their own width (exactly: float holds them all); signed ones
+  // shifted to unsigned by offset_, which the sampler adds back.
+  storage_ = VoxelStorage::Float32;
+  offset_ = 0;
+  if (opt.compact && std::is_integral<T>::value && sizeof(T) <= 2) {
+    storage_ = sizeof(T) == 1 ? VoxelStorage::UInt8 : VoxelStorage::UInt16;
+    offset_ = std::is_signed<T>::value ? vmin_ : 0.f;  // stored = value - offset >= 0
+  } else if (opt.compactIntegralFloat && !bad && hi - lo <= 65535.0) {
+    // Floating-point input that holds only integers: kept losslessly as 8/16-bit integers.
+    bool integral = true;
+#pragma omp parallel for num_threads(resolveThreads(opt.threads)) reduction(&& : integral) schedule(static)
+    for (int64_t i = 0; i < n; ++i) integral = integral && dense[size_t(i)] == std::floor(dense[size_t(i)]);
+    if (integral) {
+      offset_ = lo >= 0 && hi <= 65535.0 ? 0.f : vmin_;
+      storage_ = hi - offset_ <= 255.0 ? VoxelStorage::UInt8 : VoxelStorage::UInt16;
+    }
+  }
   vox_.reset(dims[0], dims[1], dims[2], DIM, 0.f);
   stats_ = VolumeStats{};
   stats_.nonFinite = bad;
