@@ -3,6 +3,11 @@
 #include "mtree/volume.h"
 
 #include <chrono>
+#include <cstring>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include <omp.h>
 
@@ -380,9 +385,9 @@ struct Acc<float> {
 #endif
 
 /// The shaded colour of a sample (headlight, two-sided), from the trilinear interpolant's gradient.
-template <typename R>
+template <typename R, typename Accumulator>
 inline void shadeSample(const Frame& F, const float cc[8], R fx, R fy, R fz, const float* e, const double viewDir[3],
-                        Acc<R>& acc) {
+                        Accumulator& acc) {
   const R gx = (1 - fy) * (1 - fz) * (cc[1] - cc[0]) + fy * (1 - fz) * (cc[3] - cc[2]) +
                (1 - fy) * fz * (cc[5] - cc[4]) + fy * fz * (cc[7] - cc[6]);
   const R gy = (1 - fx) * (1 - fz) * (cc[2] - cc[0]) + fx * (1 - fz) * (cc[3] - cc[1]) +
@@ -424,8 +429,9 @@ inline double exitT(const double o[3], const double d[3], const double lo[3], co
 /// Classifies and composites one sample of cell corners `cc` at fractions (fx, fy, fz).
 /// Returns true when the ray is opaque (early termination).
 template <typename R, bool Shade>
-inline bool composite(const Frame& F, const float cc[8], R fx, R fy, R fz, const double viewDir[3], Acc<R>& acc) {
-  const float v = float(lerp8<R>(cc, fx, fy, fz) + R(F.offset));
+inline bool composite(const Frame& F, const float cc[8], R fx, R fy, R fz, const double viewDir[3], Acc<R>& acc,
+                      float offset) {
+  const float v = float(lerp8<R>(cc, fx, fy, fz) + R(offset));
   const float* e = F.table + 4 * tableIndex(F, v);
   if (Shade) {
     if (!(e[3] > 0.f)) return false;
@@ -495,6 +501,7 @@ void march(const Frame& F, Fetch fetch, const double o[3], const double d[3], do
       const int lx = ix - ox, ly = iy - oy, lz = iz - oz;
       float cc[8];
       R fx, fy, fz;
+      float offset = F.offset;  // the fetch reads stored values; cellCorners() adds the offset
       if (((unsigned(lx) > mx) | (unsigned(ly) > my) | (unsigned(lz) > mz)) == 0) {
         // In the brick and in [0, n-1): clampCell's cell is the truncation (x in (-1, 0)
         // truncates to 0 with fraction 0) and its fraction x - cell.
@@ -508,9 +515,10 @@ void march(const Frame& F, Fetch fetch, const double o[3], const double d[3], do
         const int ci = clampCell(x, F.n[0], f[0]), cj = clampCell(y, F.n[1], f[1]), ck = clampCell(z, F.n[2], f[2]);
         if (!vol.cellCorners(ci, cj, ck, cc)) continue;
         fx = R(f[0]), fy = R(f[1]), fz = R(f[2]);
+        offset = 0.f;
       }
       ++samples;
-      if (composite<R, Shade>(F, cc, fx, fy, fz, viewDir, acc)) {
+      if (composite<R, Shade>(F, cc, fx, fy, fz, viewDir, acc, offset)) {
         k = kEnd + 1;
         break;
       }
@@ -521,6 +529,199 @@ void march(const Frame& F, Fetch fetch, const double o[3], const double d[3], do
   skipsOut += skips;
   acc.store(out);
 }
+
+#if defined(__SSE2__)
+/// Transmittance-form accumulator: C += T e, T *= 1 - a. The loop-carried chain is one multiply
+/// (the A += (1 - A) a form is a subtract, a multiply and an add), which bounds a ray's rate.
+struct AccT {
+  __m128 c = _mm_setzero_ps();
+  float T = 1.f;
+  void add(const float* e) {
+    c = _mm_add_ps(c, _mm_mul_ps(_mm_set1_ps(T), _mm_loadu_ps(e)));
+    T *= 1.f - e[3];
+  }
+  void add(float r, float g, float b, float a) {
+    c = _mm_add_ps(c, _mm_mul_ps(_mm_set1_ps(T), _mm_setr_ps(r, g, b, a)));
+    T *= 1.f - a;
+  }
+};
+
+/// The 8 corners of local cell `off` of an apron brick as two vectors: z = 0 (x fastest, then y)
+/// and z = 1.
+inline void apronCorners(const uint8_t* p, __m128& lo, __m128& hi) {
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
+  uint16_t a, b, c, d;
+  std::memcpy(&a, p, 2);
+  std::memcpy(&b, p + SY, 2);
+  std::memcpy(&c, p + SZ, 2);
+  std::memcpy(&d, p + SZ + SY, 2);
+  const __m128i z = _mm_setzero_si128();
+  __m128i v = _mm_cvtsi32_si128(int(uint32_t(a) | (uint32_t(b) << 16)));
+  v = _mm_insert_epi16(v, c, 2);
+  v = _mm_insert_epi16(v, d, 3);
+  const __m128i w = _mm_unpacklo_epi8(v, z);
+  lo = _mm_cvtepi32_ps(_mm_unpacklo_epi16(w, z));
+  hi = _mm_cvtepi32_ps(_mm_unpackhi_epi16(w, z));
+}
+inline void apronCorners(const uint16_t* p, __m128& lo, __m128& hi) {
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
+  uint32_t a, b, c, d;
+  std::memcpy(&a, p, 4);
+  std::memcpy(&b, p + SY, 4);
+  std::memcpy(&c, p + SZ, 4);
+  std::memcpy(&d, p + SZ + SY, 4);
+  const __m128i z = _mm_setzero_si128();
+  const __m128i v0 = _mm_unpacklo_epi32(_mm_cvtsi32_si128(int(a)), _mm_cvtsi32_si128(int(b)));
+  const __m128i v1 = _mm_unpacklo_epi32(_mm_cvtsi32_si128(int(c)), _mm_cvtsi32_si128(int(d)));
+  lo = _mm_cvtepi32_ps(_mm_unpacklo_epi16(v0, z));
+  hi = _mm_cvtepi32_ps(_mm_unpacklo_epi16(v1, z));
+}
+
+/// The UInt8/UInt16 marcher (float accumulation): positions P0 + k S in float, 4-wide (x, y, z in
+/// one register: one multiply-add, one conversion, one bounds test per sample), corners fetched
+/// and interpolated as vectors, branch-free classification. Same walk as march(): brick lookup
+/// and coarsest-empty-ancestor skipping at sample k, samples inside a stored brick read it
+/// directly, a sample needing clamping takes the general path.
+template <typename T, bool Skip, bool Shade>
+void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const double d[3], double t0, int64_t kEnd,
+                const double viewDir[3], float out[4], uint64_t& samplesOut, uint64_t& skipsOut) {
+  const BlockSparseVolume& vol = *F.vol;
+  uint64_t samples = 0, skips = 0;
+  AccT acc;
+  const float Tmin = 1.f - F.threshold;  // stop when the transmittance falls to this
+  const float P0s[3] = {float(o[0] + d[0] * t0), float(o[1] + d[1] * t0), float(o[2] + d[2] * t0)};
+  const float Ss[3] = {float(d[0] * F.dt), float(d[1] * F.dt), float(d[2] * F.dt)};
+  const __m128 P0 = _mm_setr_ps(P0s[0], P0s[1], P0s[2], 0.f), S = _mm_setr_ps(Ss[0], Ss[1], Ss[2], 0.f);
+  const __m128 zero = _mm_setzero_ps();
+  const __m128 tlo = _mm_set_ss(F.tlo), tscale = _mm_set_ss(F.tscale), half = _mm_set_ss(0.5f);
+  const int tlast = F.tlast;
+  const float* const table = F.table;
+  const float offset = F.offset;
+  const int levels = vol.levelCount();
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
+  int64_t k = 0;
+  while (k <= kEnd) {
+    alignas(16) float p[4];
+    _mm_store_ps(p, _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(float(k)), S)));
+    int cell[3];
+    for (int a = 0; a < 3; ++a) {
+      double f;
+      cell[a] = clampCell(double(p[a]), F.n[a], f);
+    }
+    const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
+    int empty = -1;
+    if (Skip && !vol.nodeVisible(0, bi, bj, bk)) {
+      empty = 0;
+      while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
+        ++empty;
+    } else if (!fetch.enter(bi, bj, bk)) {
+      empty = 0;
+    }
+    if (empty >= 0) {
+      // Leave the node at the last sample at or before its exit (floor, as march()).
+      const double edge = double(DIM << empty);
+      const int node[3] = {bi >> empty, bj >> empty, bk >> empty};
+      double kx = std::numeric_limits<double>::infinity();
+      for (int a = 0; a < 3; ++a) {
+        const double lo = node[a] * edge, s = double(Ss[a]);
+        if (s > 0) kx = std::min(kx, (lo + edge - double(P0s[a])) / s);
+        else if (s < 0) kx = std::min(kx, (lo - double(P0s[a])) / s);
+      }
+      const double kf = std::floor(kx);
+      const int64_t kLast = kf >= double(kEnd) ? kEnd : std::max<int64_t>(k, static_cast<int64_t>(kf));
+      if (Skip) ++skips;
+      k = std::max(k + 1, kLast);
+      continue;
+    }
+    const int ox = bi << LOG2DIM, oy = bj << LOG2DIM, oz = bk << LOG2DIM;
+    const __m128i org = _mm_setr_epi32(ox, oy, oz, 0);
+    const __m128i lim = _mm_setr_epi32(std::min(DIM - 1, F.n[0] - 2 - ox), std::min(DIM - 1, F.n[1] - 2 - oy),
+                                       std::min(DIM - 1, F.n[2] - 2 - oz), 0);
+    const __m128i zeroi = _mm_setzero_si128();
+    const int64_t kStart = k;
+    bool done = false;
+    float kf = float(k);
+    for (; k <= kEnd; ++k, kf += 1.f) {
+      const __m128 pos = _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(kf), S));
+      const __m128i ip = _mm_cvttps_epi32(pos);
+      const __m128i l = _mm_sub_epi32(ip, org);
+      const __m128i out4 = _mm_or_si128(_mm_cmpgt_epi32(l, lim), _mm_cmpgt_epi32(zeroi, l));
+      if (_mm_movemask_epi8(out4)) break;  // left the brick (or needs clamping)
+      // x in (-1, 0) truncates to cell 0: the clamped fraction is 0, as clampCell gives.
+      const __m128 f = _mm_max_ps(_mm_sub_ps(pos, _mm_cvtepi32_ps(ip)), zero);
+      const int lx = _mm_cvtsi128_si32(l), ly = _mm_cvtsi128_si32(_mm_shuffle_epi32(l, 0x55)),
+                lz = _mm_cvtsi128_si32(_mm_shuffle_epi32(l, 0xAA));
+      __m128 c0, c1;
+      apronCorners(fetch.base + (lx + SY * ly + SZ * lz), c0, c1);
+      const __m128 fz = _mm_shuffle_ps(f, f, 0xAA), fy = _mm_shuffle_ps(f, f, 0x55);
+      const __m128 zl = _mm_add_ps(c0, _mm_mul_ps(fz, _mm_sub_ps(c1, c0)));  // (x0y0, x1y0, x0y1, x1y1)
+      const __m128 yl = _mm_add_ps(zl, _mm_mul_ps(fy, _mm_sub_ps(_mm_movehl_ps(zl, zl), zl)));  // (x0, x1)
+      const __m128 x1 = _mm_shuffle_ps(yl, yl, 0x55);
+      const __m128 v = _mm_add_ss(_mm_add_ss(yl, _mm_mul_ss(f, _mm_sub_ss(x1, yl))), _mm_set_ss(offset));
+      ++samples;
+      // TransferTable::index, branch-free: truncation, then clamped into [0, last].
+      const int raw = _mm_cvttss_si32(_mm_add_ss(_mm_mul_ss(_mm_sub_ss(v, tlo), tscale), half));
+      const int idx = std::min(std::max(raw, 0), tlast);
+      const float* e = table + 4 * idx;
+      if (Shade) {
+        if (!(e[3] > 0.f)) continue;
+        alignas(16) float cc[8], fs[4];
+        _mm_store_ps(cc, c0);
+        _mm_store_ps(cc + 4, c1);
+        _mm_store_ps(fs, f);
+        shadeSample<float>(F, cc, fs[0], fs[1], fs[2], e, viewDir, acc);
+      } else {
+        acc.add(e);  // a transparent entry is 0 0 0 0: no change
+      }
+      if (acc.T <= Tmin) {
+        done = true;
+        break;
+      }
+    }
+    if (done) break;
+    if (k == kStart) {
+      // The sample needs clamping (the grid's far face, or outside it by round-off).
+      _mm_store_ps(p, _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(float(k)), S)));
+      double f[3];
+      int c[3];
+      for (int a = 0; a < 3; ++a) c[a] = clampCell(double(p[a]), F.n[a], f[a]);
+      float cc[8];
+      if (vol.cellCorners(c[0], c[1], c[2], cc)) {
+        ++samples;
+        const float v = lerp8<float>(cc, float(f[0]), float(f[1]), float(f[2]));  // offset is in cc
+        const float* e = table + 4 * std::min(std::max(static_cast<int>((v - F.tlo) * F.tscale + 0.5f), 0), tlast);
+        if (Shade) {
+          if (e[3] > 0.f) shadeSample<float>(F, cc, float(f[0]), float(f[1]), float(f[2]), e, viewDir, acc);
+        } else {
+          acc.add(e);
+        }
+        if (acc.T <= Tmin) break;
+      }
+      ++k;
+    }
+  }
+  samplesOut += samples;
+  skipsOut += skips;
+  _mm_storeu_ps(out, acc.c);
+}
+#endif
+
+/// march() for every storage; the SSE2 marcher for UInt8/UInt16 in float.
+template <typename R, bool Skip, bool Shade, typename Fetch>
+inline void marchRay(const Frame& F, const Fetch& fetch, const double o[3], const double d[3], double t0,
+                     int64_t kEnd, const double viewDir[3], float out[4], uint64_t& samples, uint64_t& skips) {
+  march<R, Fetch, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
+}
+#if defined(__SSE2__)
+template <typename R, bool Skip, bool Shade, typename T>
+inline void marchRay(const Frame& F, const ApronFetch<T>& fetch, const double o[3], const double d[3], double t0,
+                     int64_t kEnd, const double viewDir[3], float out[4], uint64_t& samples, uint64_t& skips) {
+  if (std::is_same<R, float>::value)
+    marchApron<T, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
+  else
+    march<R, ApronFetch<T>, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
+}
+#endif
 
 template <typename R, typename Fetch, bool Skip, bool Shade>
 void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
@@ -574,7 +775,7 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
         const double kx = std::floor((t1 - t0) / F.dt);
         const int64_t kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
         const double viewDir[3] = {d.x, d.y, d.z};  // the headlight: along the ray
-        march<R, Fetch, Skip, Shade>(F, fetch, ro, rd, t0, kEnd, viewDir, out, sTotal, kTotal);
+        marchRay<R, Skip, Shade>(F, fetch, ro, rd, t0, kEnd, viewDir, out, sTotal, kTotal);
       }
   }
   samples += sTotal;

@@ -473,3 +473,148 @@ TEST(VolumeEdgeCases, IntegerScalarsAndTwoVoxelAxes) {
   ASSERT_TRUE(vol.sample(0.5, 1.5, 0.5, s));
   EXPECT_EQ(s, 300.0);
 }
+
+// ---------------------------------------------------------------------------------------------
+// UInt8/UInt16 apron bricks (8/16-bit input, or integer-valued float with compactIntegralFloat)
+// against the Float32 blocks and the dense array; their SSE2 marcher against the general one.
+
+namespace {
+
+/// Blobs rounded to integers in [lo, lo + 255 * scale], as type T.
+template <typename T>
+std::vector<T> integerBlobs(const Dense& d, double lo, double scale) {
+  std::vector<T> v(d.v.size());
+  for (size_t i = 0; i < v.size(); ++i) v[i] = static_cast<T>(std::lround(lo + d.v[i] * 2.55 * scale));
+  return v;
+}
+
+template <typename T>
+void expectCompactMatchesFloat(VoxelStorage expected, double lo, double scale) {
+  const Dense d = blobs(41, 35, 29, 13);
+  const std::vector<T> vi = integerBlobs<T>(d, lo, scale);
+  Dense asFloat{{d.n[0], d.n[1], d.n[2]}, std::vector<float>(vi.begin(), vi.end())};
+  const double hi = lo + 255 * scale;
+  const TransferTable tf = rampTable(lo, hi, 0.3, 0.5);
+  BlockSparseVolume compact, flt;
+  compact.build(vi.data(), d.n, tf);
+  VolumeBuildOptions o;
+  o.compact = false;
+  flt.build(vi.data(), d.n, tf, o);
+  ASSERT_EQ(compact.storage(), expected);
+  ASSERT_EQ(flt.storage(), VoxelStorage::Float32);
+  EXPECT_EQ(compact.stats().blocksAllocated, flt.stats().blocksAllocated);
+  EXPECT_EQ(compact.stats().blockBytes, flt.stats().blockBytes);
+  EXPECT_LE(double(compact.stats().bytes), 1.10 * double(compact.stats().blockBytes));
+  EXPECT_LT(compact.stats().bricksStored, compact.stats().bricks) << "blobs should leave bricks empty";
+  // Sampling: the apron bricks hold every corner of a visible cell, exactly.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> ux(-0.5, d.n[0] - 0.5), uy(-0.5, d.n[1] - 0.5), uz(-0.5, d.n[2] - 0.5);
+  int present = 0;
+  for (int s = 0; s < 20000; ++s) {
+    const double x = ux(rng), y = uy(rng), z = uz(rng);
+    double a = 0, b = 0;
+    const bool pa = compact.sample(x, y, z, a), pb = flt.sample(x, y, z, b);
+    if (pa) {
+      ++present;
+      EXPECT_NEAR(a, asFloat.sample(x, y, z), 1e-6 * std::max(1.0, std::fabs(hi)));
+    }
+    if (pa != pb) {
+      // Present in one layout only (the apron brick holds all its cells, the float blocks the
+      // corners of visible cells): the cell must be invisible.
+      int c[3];
+      const double q[3] = {x, y, z};
+      for (int a3 = 0; a3 < 3; ++a3) c[a3] = std::min(std::max(int(std::floor(q[a3])), 0), d.n[a3] - 2);
+      float mn = 1e30f, mx = -1e30f;
+      for (int m = 0; m < 8; ++m) {
+        const float w = asFloat.at(c[0] + (m & 1), c[1] + ((m >> 1) & 1), c[2] + (m >> 2));
+        mn = std::min(mn, w);
+        mx = std::max(mx, w);
+      }
+      EXPECT_EQ(tf.maxOpacity(mn, mx), 0.f) << "a visible cell missing from one layout";
+    }
+  }
+  EXPECT_GT(present, 1000);
+  // Whole images: the SSE2 float marcher and the general double one, skipping on and off, and the
+  // float blocks, on a perspective view through the blobs.
+  VolumeGeometry g;
+  g.spacing[0] = 0.8, g.spacing[1] = 1.1, g.spacing[2] = 1.3;
+  const VolumeCamera cam = lookAt({-25, 50, -40}, {16, 19, 19}, 40, 36);
+  for (int variant = 0; variant < 4; ++variant) {
+    VolumeRenderOptions opt;
+    opt.sampleDistance = 0.45;
+    opt.shade = variant & 1;
+    opt.earlyTermination = (variant & 2) ? 1.0 : 0.95;
+    VolumeRenderOptions noSkip = opt, dbl = opt;
+    noSkip.emptySpaceSkipping = false;
+    dbl.doublePrecision = true;
+    const VolumeImage a = renderVolume(compact, g, tf, cam, opt);
+    const VolumeImage b = renderVolume(compact, g, tf, cam, noSkip);
+    const VolumeImage c = renderVolume(flt, g, tf, cam, opt);
+    const VolumeImage e = renderVolume(compact, g, tf, cam, dbl);
+    const VolumeImage f = renderVolume(flt, g, tf, cam, dbl);
+    EXPECT_EQ(maxDiff(a, b), 0.0) << "variant " << variant << ": skipping must not change the image";
+    EXPECT_EQ(a.samples, b.samples);
+    EXPECT_GT(a.skips, 0u);
+    EXPECT_LE(maxDiff(a, c), 2e-4) << "variant " << variant << ": compact vs float storage";
+    EXPECT_LE(maxDiff(a, e), 2e-4) << "variant " << variant << ": SSE2 float marcher vs general double";
+    EXPECT_LE(maxDiff(e, f), 1e-5) << "variant " << variant << ": double precision, compact vs float";
+    double sumA = 0;
+    for (size_t i = 3; i < a.rgba.size(); i += 4) sumA += a.rgba[i];
+    EXPECT_GT(sumA, 5.0);
+  }
+}
+
+}  // namespace
+
+TEST(CompactStorage, UInt8MatchesFloat) { expectCompactMatchesFloat<uint8_t>(VoxelStorage::UInt8, 0, 1); }
+TEST(CompactStorage, Int8MatchesFloat) { expectCompactMatchesFloat<int8_t>(VoxelStorage::UInt8, -128, 1); }
+TEST(CompactStorage, UInt16MatchesFloat) { expectCompactMatchesFloat<uint16_t>(VoxelStorage::UInt16, 1000, 200); }
+TEST(CompactStorage, Int16MatchesFloat) { expectCompactMatchesFloat<int16_t>(VoxelStorage::UInt16, -20000, 150); }
+
+TEST(CompactStorage, IntegerValuedFloatIsStoredLosslesslyOnRequest) {
+  const Dense d = blobs(20, 18, 16, 4);
+  std::vector<float> v(d.v.size());
+  for (size_t i = 0; i < v.size(); ++i) v[i] = std::round(d.v[i] * 3.f);  // 0..300: needs 16 bits
+  const TransferTable tf = rampTable(0, 300, 0.2, 0.5);
+  BlockSparseVolume a, b;
+  a.build(v.data(), d.n, tf);
+  EXPECT_EQ(a.storage(), VoxelStorage::Float32) << "off by default (the OpenCL back end reads float blocks)";
+  VolumeBuildOptions o;
+  o.compactIntegralFloat = true;
+  b.build(v.data(), d.n, tf, o);
+  EXPECT_EQ(b.storage(), VoxelStorage::UInt16);
+  v[7] += 0.5f;  // one fractional value: stays float
+  BlockSparseVolume c;
+  c.build(v.data(), d.n, tf, o);
+  EXPECT_EQ(c.storage(), VoxelStorage::Float32);
+  const VolumeCamera cam = lookAt({-20, 30, -30}, {10, 9, 8}, 24, 24);
+  VolumeRenderOptions opt;
+  opt.sampleDistance = 0.5;
+  EXPECT_LE(maxDiff(renderVolume(a, VolumeGeometry(), tf, cam, opt), renderVolume(b, VolumeGeometry(), tf, cam, opt)),
+            2e-4);
+}
+
+TEST(CompactStorage, RaysAlongAxesAndFromInsideOnFarFaces) {
+  // Axis-aligned rays on the grid's last plane (every sample on the far face needs clamping) and
+  // an eye inside the volume: the SSE2 marcher's general-path fallback against the double one.
+  std::vector<uint8_t> v(size_t(17) * 9 * 12);
+  for (size_t i = 0; i < v.size(); ++i) v[i] = uint8_t((i * 37) % 251);
+  const int dims[3] = {17, 9, 12};
+  const TransferTable tf = rampTable(0, 255, 0.1, 0.3);
+  BlockSparseVolume vol;
+  vol.build(v.data(), dims, tf);
+  ASSERT_EQ(vol.storage(), VoxelStorage::UInt8);
+  const VolumeCamera cams[] = {lookAt({-5, 8, 11}, {30, 8, 11}, 9, 9), lookAt({16, -4, 0}, {16, 30, 0}, 9, 9),
+                               lookAt({8, 4, 5}, {30, 20, 40}, 9, 9), lookAt({16, 8, 30}, {16, 8, -10}, 9, 9)};
+  for (const VolumeCamera& cam : cams) {
+    VolumeRenderOptions opt;
+    opt.sampleDistance = 0.25;
+    opt.earlyTermination = 1.0;
+    VolumeRenderOptions dbl = opt;
+    dbl.doublePrecision = true;
+    const VolumeImage a = renderVolume(vol, VolumeGeometry(), tf, cam, opt);
+    const VolumeImage b = renderVolume(vol, VolumeGeometry(), tf, cam, dbl);
+    EXPECT_LE(maxDiff(a, b), 2e-4);
+    EXPECT_EQ(a.samples, b.samples);
+  }
+}

@@ -150,3 +150,33 @@ def test_vtk_class_reports_errors_without_crashing():
         c.GlobalWarningDisplayOn()
     assert c.GetOutput().GetPointData().GetArray("RGBA") is None
     assert "ScalarOpacityUnitDistance" in str(c)
+
+
+def test_compact_storage_is_chosen_and_matches_float_storage():
+    """8-bit input (and integer-valued float input) is held in 8/16-bit apron bricks; the image
+    matches the float-block rendering of the same values shifted by 0.25 (opacity shifted too)."""
+    im = matrixtree.read_volume(os.path.join(VOLUMES, "HeadMRVolume.mhd"))
+    common = dict(size=(40, 40), camera=matrixtree.frame_camera(im))
+    a, sa = matrixtree.render_volume(im, return_stats=True, **common)
+    assert sa["storage"] == "uint8"
+    assert sa["bytes"] <= 1.10 * sa["visible_block_bytes"]
+    arr = vtk_to_numpy(im.GetPointData().GetScalars()).astype(np.float64)
+    arr = arr.reshape(tuple(reversed(im.GetDimensions()))).transpose(2, 1, 0)
+    b, sb = matrixtree.render_volume(arr + 0.25, spacing=im.GetSpacing(), origin=im.GetOrigin(), return_stats=True,
+                                     color=matrixtree.default_transfer_functions(im)[0],
+                                     opacity=_shifted(matrixtree.default_transfer_functions(im)[1], 0.25), **common)
+    assert sb["storage"] == "float32"
+    assert np.abs(a - b).max() < 2e-3
+    c, sc = matrixtree.render_volume(arr, spacing=im.GetSpacing(), origin=im.GetOrigin(), return_stats=True,
+                                     **common)
+    assert sc["storage"] == "uint8"  # float64 holding integers 0..255: lossless
+    assert np.abs(a - c).max() < 1e-6
+
+
+def _shifted(otf, delta):
+    out = vtkPiecewiseFunction()
+    for i in range(otf.GetSize()):
+        node = [0.0] * 4
+        otf.GetNodeValue(i, node)
+        out.AddPoint(node[0] + delta, node[1], node[2], node[3])
+    return out
