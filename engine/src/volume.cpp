@@ -41,11 +41,11 @@ TransferTable::TransferTable(double lo, double hi, std::vector<float> rgba, doub
   }
 }
 
-float TransferTable::maxOpacity(float a, float b) const {
+float TransferTable::maxOpacity(float a, float b, float tol) const {
   if (rgba_.empty()) return 0.f;
-  int i = index(std::min(a, b)) - 1, j = index(std::max(a, b)) + 1;
-  i = std::max(i, 0);
-  j = std::min(j, last_);
+  const float lo = std::min(a, b), hi = std::max(a, b);
+  if (!(tol >= 0.f)) tol = 1e-5f * (std::fabs(lo) + std::fabs(hi)) + 1e-30f;
+  const int i = std::max(index(lo - tol), 0), j = std::min(index(hi + tol), last_);
   int l = 0;
   while ((2 << l) <= j - i + 1) ++l;
   return std::max(rangeMax_[l][i], rangeMax_[l][j - (1 << l) + 1]);
@@ -69,6 +69,8 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
   for (int a = 0; a < 3; ++a) l0.n[a] = nb[a];
   l0.occ.assign(size_t(nBricks), 0);
   std::vector<uint8_t> marks(vox_.pointerCount(), opt.sparse ? 0 : 1);
+  const bool compact = storage_ != VoxelStorage::Float32;
+  cellMask_.assign(compact ? size_t(nBricks) * DIM : 0, 0);
   uint64_t visibleCells = 0;
 
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 4) reduction(+ : visibleCells)
@@ -87,7 +89,9 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
         }
     brickMin_[size_t(b)] = mn;
     brickMax_[size_t(b)] = mx;
-    if (tf.maxOpacity(mn, mx) <= 0.f) continue;  // the whole brick is transparent
+    // Round-off bound of an interpolation (of stored values, then + offset_: see maxOpacity).
+    const auto tol = [&](float a, float b) { return 1e-5f * (std::fabs(a) + std::fabs(b) + 2.f * std::fabs(offset_)) + 1e-30f; };
+    if (tf.maxOpacity(mn, mx, tol(mn, mx)) <= 0.f) continue;  // the whole brick is transparent
     uint64_t vis = 0;
     for (int k = c0[2]; k < c1[2]; ++k)
       for (int j = c0[1]; j < c1[1]; ++j)
@@ -98,8 +102,9 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
             lo = std::min(lo, v);
             hi = std::max(hi, v);
           }
-          if (tf.maxOpacity(lo, hi) <= 0.f) continue;
+          if (tf.maxOpacity(lo, hi, tol(lo, hi)) <= 0.f) continue;
           ++vis;
+          if (compact) cellMask_[size_t(b) * DIM + (k - c0[2])] |= uint64_t(1) << ((i - c0[0]) + DIM * (j - c0[1]));
           if (!opt.sparse) continue;
           for (int c = 0; c < 8; ++c) {
             const size_t p = vox_.pointerIndex(i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2));
@@ -201,7 +206,8 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
   for (const LevelGrid& g : levels_) levelBytes += g.occ.size();
   const uint64_t voxelBytes = storage_ == VoxelStorage::Float32
                                   ? vox_.bytes()
-                                  : brickPtr_.size() * sizeof(uint32_t) + b8_.size() + b16_.size() * sizeof(uint16_t);
+                                  : brickPtr_.size() * sizeof(uint32_t) + b8_.size() + b16_.size() * sizeof(uint16_t) +
+                                        cellMask_.size() * sizeof(uint64_t);
   s.bytes = voxelBytes + (brickMin_.size() + brickMax_.size()) * sizeof(float) + levelBytes;
   s.denseBytes = s.voxels * sizeof(float);
   s.levels = levelCount();
@@ -272,16 +278,22 @@ struct ApronFetch {
   static constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
   const uint32_t* ptr;
   const T* data;
+  const uint64_t* masks;
   int nb0, nb1;
   const T* base = nullptr;
-  ApronFetch(const uint32_t* p, const T* d, int n0, int n1) : ptr(p), data(d), nb0(n0), nb1(n1) {}
+  const uint64_t* mask = nullptr;  // the brick's visible cells, one word per z layer
+  ApronFetch(const uint32_t* p, const T* d, const uint64_t* m, int n0, int n1)
+      : ptr(p), data(d), masks(m), nb0(n0), nb1(n1) {}
   bool enter(int bi, int bj, int bk) {
-    const uint32_t b = ptr[(size_t(bk) * nb1 + bj) * nb0 + bi];
+    const size_t i = (size_t(bk) * nb1 + bj) * nb0 + bi;
+    const uint32_t b = ptr[i];
     if (b == MT_NULL) return false;
     base = data + size_t(b) * BlockSparseVolume::BRICK_VOLUME;
+    mask = masks + i * DIM;
     return true;
   }
   bool corners(int lx, int ly, int lz, float c[8]) const {
+    if (!((mask[lz] >> (lx + DIM * ly)) & 1)) return false;  // invisible cell: opacity 0
     const T* p = base + (lx + SY * ly + SZ * lz);
     c[0] = float(p[0]);
     c[1] = float(p[1]);
@@ -651,6 +663,8 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
       const __m128 f = _mm_max_ps(_mm_sub_ps(pos, _mm_cvtepi32_ps(ip)), zero);
       const int lx = _mm_cvtsi128_si32(l), ly = _mm_cvtsi128_si32(_mm_shuffle_epi32(l, 0x55)),
                 lz = _mm_cvtsi128_si32(_mm_shuffle_epi32(l, 0xAA));
+      // An invisible cell (opacity 0 on its whole value range, see the header) adds exactly 0.
+      if (!((fetch.mask[lz] >> (lx + DIM * ly)) & 1)) continue;
       __m128 c0, c1;
       apronCorners(fetch.base + (lx + SY * ly + SZ * lz), c0, c1);
       const __m128 fz = _mm_shuffle_ps(f, f, 0xAA), fy = _mm_shuffle_ps(f, f, 0x55);
@@ -804,11 +818,14 @@ void dispatchStorage(const BlockSparseVolume& vol, bool skip, bool shade, const 
   const int nb0 = vol.levelDim(0, 0), nb1 = vol.levelDim(0, 1);
   switch (vol.storage()) {
     case VoxelStorage::UInt8:
-      dispatch<R>(skip, shade, F, ApronFetch<uint8_t>(vol.brickPointers().data(), vol.bricks8().data(), nb0, nb1), geo,
-                  cam, w, h, aspect, threads, img, rgba);
+      dispatch<R>(skip, shade, F,
+                  ApronFetch<uint8_t>(vol.brickPointers().data(), vol.bricks8().data(), vol.cellMasks().data(), nb0, nb1),
+                  geo, cam, w, h, aspect, threads, img, rgba);
       break;
     case VoxelStorage::UInt16:
-      dispatch<R>(skip, shade, F, ApronFetch<uint16_t>(vol.brickPointers().data(), vol.bricks16().data(), nb0, nb1),
+      dispatch<R>(skip, shade, F,
+                  ApronFetch<uint16_t>(vol.brickPointers().data(), vol.bricks16().data(), vol.cellMasks().data(), nb0,
+                                       nb1),
                   geo, cam, w, h, aspect, threads, img, rgba);
       break;
     default:

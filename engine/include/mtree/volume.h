@@ -25,8 +25,9 @@
 //                      clamping, no bounds checks and no pointer-matrix reads.
 //
 // Exactness of the skipping: a cell that is not visible yields opacity exactly 0 at every sample
-// (the interpolated value lies in [min, max] of the corners, the table lookup is monotone, and
-// the range query is widened by one entry for round-off), so skipping it, or reading it from an
+// (the interpolated value lies in [min, max] of the corners up to round-off, the table lookup is
+// monotone, and the range query is widened by a bound on that round-off), so skipping it, or
+// reading it from an
 // absent block, changes nothing. Sample k sits at P0 + k * S (index space, computed the same way
 // in both modes), so rendering with and without skipping gives the same image bit for bit.
 #pragma once
@@ -73,9 +74,11 @@ class TransferTable {
   float indexLo() const { return flo_; }
   float indexScale() const { return fscale_; }
   int lastIndex() const { return last_; }
-  /// Largest alpha over every entry a scalar in [a, b] can map to, widened by one entry each
-  /// side for interpolation round-off. O(1) (sparse table of range maxima).
-  float maxOpacity(float a, float b) const;
+  /// Largest alpha over every entry a scalar in [a - tol, b + tol] maps to: the values an
+  /// interpolation of corners in [a, b] can round to (index() is monotone, so this is exact).
+  /// tol < 0: 1e-5 (|a| + |b|) + 1e-30, far above the round-off of a trilinear interpolation in
+  /// float (a few ulps of max(|a|, |b|)). O(1) (sparse table of range maxima).
+  float maxOpacity(float a, float b, float tol = -1.f) const;
 
  private:
   double lo_ = 0, hi_ = 1, unit_ = 1;
@@ -141,6 +144,9 @@ class BlockSparseVolume {
   const std::vector<uint8_t>& bricks8() const { return b8_; }
   const std::vector<uint16_t>& bricks16() const { return b16_; }
   float storageOffset() const { return offset_; }
+  /// UInt8/UInt16 layout: per level-0 brick, DIM 64-bit words (one per z layer, bit x + DIM y) marking
+  /// its visible cells; a sample in an unmarked cell has opacity exactly 0 and is not taken.
+  const std::vector<uint64_t>& cellMasks() const { return cellMask_; }
   const VolumeStats& stats() const { return stats_; }
   float minValue() const { return vmin_; }
   float maxValue() const { return vmax_; }
@@ -209,6 +215,7 @@ class BlockSparseVolume {
   std::vector<uint32_t> brickPtr_;
   std::vector<uint8_t> b8_;
   std::vector<uint16_t> b16_;
+  std::vector<uint64_t> cellMask_;
   const uint32_t* ptr_ = nullptr;
   const float* data_ = nullptr;
   std::vector<LevelGrid> levels_;
