@@ -48,6 +48,7 @@
 #include "mtree/builder.h"
 #include "mtree/intersect.h"
 #include "mtree/opencl.h"
+#include "mtree/opencl_render.h"
 #include "mtree/render.h"
 #include "mtree/sah_kdtree.h"
 
@@ -177,91 +178,6 @@ uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& sampl
     if (std::fabs(t - s.ref.t) > 1e-6 * std::max(1.0, std::fabs(s.ref.t))) ++bad;
   }
   return bad;
-}
-
-// render() (mtree/render.h) with the rays traced on the OpenCL device in two batches: the same
-// camera rays, light, eps offset and shading. A shadow ray is the segment render() traces, from
-// q = p + n*eps to q + (light - p): direction (light - p), t in [0, 1] (the batch kernel takes one
-// t range for all rays). nodeVisits/primTests per pixel stay 0 (the kernels give sums only).
-RenderResult renderOpenCL(ocl::Tracer& tracer, const TriangleMesh& mesh, const Box& sceneBox, const Camera& cam,
-                          const RenderOptions& opt, double* traceMs) {
-  RenderResult r;
-  const int W = cam.width, Hh = cam.height;
-  r.width = W;
-  r.height = Hh;
-  const size_t npix = size_t(W) * Hh;
-  r.rgb.assign(npix * 3, 0);
-  r.nodeVisits.assign(npix, 0);
-  r.primTests.assign(npix, 0);
-  r.depth.assign(npix, std::numeric_limits<float>::infinity());
-  r.hitPrim.assign(npix, MT_NULL);
-  const auto t0 = Clock::now();
-  const PinholeRays rays(cam);
-  const double diag = sceneBox.empty() ? 1.0 : std::max(norm(sceneBox.extent()), 1e-300);
-  const double eps = 1e-7 * diag + 1e-9 * norm(sceneBox.center());
-  const Vec3 light = opt.lightFromCamera ? cam.eye + rays.up * (0.5 * diag) + rays.right * (0.3 * diag) : opt.light;
-  std::vector<double> o(3 * npix), d(3 * npix), t(npix);
-  std::vector<uint32_t> prim(npix);
-  for (int y = 0; y < Hh; ++y)
-    for (int x = 0; x < W; ++x) {
-      const size_t pix = size_t(y) * W + x;
-      const Vec3 dir = rays.direction(x, y);
-      for (int k = 0; k < 3; ++k) {
-        o[3 * pix + k] = cam.eye[k];
-        d[3 * pix + k] = dir[k];
-      }
-    }
-  uint64_t v1 = 0, c1 = 0, v2 = 0, c2 = 0;
-  auto tb = Clock::now();
-  tracer.intersectFirst(o.data(), d.data(), npix, 0.0, std::numeric_limits<double>::infinity(), t.data(),
-                        prim.data(), &v1, &c1);
-  *traceMs = msSince(tb);
-  std::vector<double> diffuse(npix, 0.0), so, sd;
-  std::vector<size_t> shadowPix;
-  for (size_t pix = 0; pix < npix; ++pix) {
-    if (prim[pix] == MT_NULL) continue;
-    const Vec3 dir(d[3 * pix], d[3 * pix + 1], d[3 * pix + 2]);
-    const Vec3 a = mesh.vertex(prim[pix], 0), b = mesh.vertex(prim[pix], 1), cc = mesh.vertex(prim[pix], 2);
-    Vec3 n = normalized(cross(b - a, cc - a));
-    if (dot(n, dir) > 0) n = n * -1.0;
-    const Vec3 p = cam.eye + dir * t[pix];
-    const Vec3 toL = light - p;
-    const double distL = norm(toL);
-    diffuse[pix] = std::max(0.0, dot(n, toL * (1.0 / distL)));
-    if (opt.shadows && diffuse[pix] > 0) {
-      const Vec3 q = p + n * eps;
-      for (int k = 0; k < 3; ++k) {
-        so.push_back(q[k]);
-        sd.push_back(toL[k]);
-      }
-      shadowPix.push_back(pix);
-    }
-  }
-  std::vector<uint8_t> blocked(shadowPix.size(), 0);
-  tb = Clock::now();
-  if (!shadowPix.empty())
-    tracer.intersectAny(so.data(), sd.data(), shadowPix.size(), 0.0, 1.0, blocked.data(), &v2, &c2);
-  *traceMs += msSince(tb);
-  for (size_t k = 0; k < shadowPix.size(); ++k)
-    if (blocked[k]) diffuse[shadowPix[k]] = 0;
-  for (size_t pix = 0; pix < npix; ++pix) {
-    Vec3 c = opt.background;
-    if (prim[pix] != MT_NULL) {
-      ++r.hits;
-      const double s = opt.ambient + (1 - opt.ambient) * diffuse[pix];
-      c = Vec3(opt.albedo.x * s, opt.albedo.y * s, opt.albedo.z * s);
-      r.depth[pix] = static_cast<float>(t[pix]);
-      r.hitPrim[pix] = prim[pix];
-    }
-    for (int k = 0; k < 3; ++k)
-      r.rgb[pix * 3 + k] = static_cast<uint8_t>(std::min(255.0, std::max(0.0, c[k] * 255.0 + 0.5)));
-  }
-  r.ms = msSince(t0);
-  r.primaryRays = npix;
-  r.shadowRays = shadowPix.size();
-  r.stats.nodeVisits = v1 + v2;
-  r.stats.primTests = c1 + c2;
-  return r;
 }
 
 // Pixels whose first hit differs between two renders of the same frame (same triangle, or both
