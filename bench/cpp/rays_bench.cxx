@@ -348,6 +348,18 @@ int run(int argc, char** argv) {
       }
     };
 
+    // `repeat` renders of this frame through `tracer`: wall and CPU times, the last result.
+    auto timedRenders = [&](const auto& tracer, std::vector<double>& wall, std::vector<double>& cpu) {
+      RenderResult r;
+      for (int k = 0; k < repeat; ++k) {
+        const double c0 = cpuMs();
+        r = render(tracer, mesh, box, sc.cam, ropt);
+        cpu.push_back(cpuMs() - c0);
+        wall.push_back(r.ms);
+      }
+      return r;
+    };
+
     for (size_t mi = 0; mi < mtMethods.size(); ++mi) {
       BuildOptions bo;
       bo.kind = mtMethods[mi].kind;
@@ -372,13 +384,7 @@ int run(int argc, char** argv) {
         Row& row = rowFor(mtMethods[mi].name, "matrix", test);
         MatrixTreeTracer tracer{mtTrees[mi], mesh, test};
         std::vector<double> rt, ct;
-        RenderResult r;
-        for (int k = 0; k < repeat; ++k) {
-          const double c0 = cpuMs();
-          r = render(tracer, mesh, box, sc.cam, ropt);
-          ct.push_back(cpuMs() - c0);
-          rt.push_back(r.ms);
-        }
+        const RenderResult r = timedRenders(tracer, rt, ct);
         account(row, r, median(bt), median(rt), median(ct), median(bc));
         row.bytes = mtTrees[mi].bytes();
         row.height = mtTrees[mi].height();
@@ -454,13 +460,7 @@ int run(int argc, char** argv) {
           Row& row = rowFor("sah", sahTraversalName(tr), test);
           SahTracer tracer{sah, mesh, tr, test, shortStack};
           std::vector<double> rt, ct;
-          RenderResult r;
-          for (int k = 0; k < repeat; ++k) {
-            const double c0 = cpuMs();
-            r = render(tracer, mesh, box, sc.cam, ropt);
-            ct.push_back(cpuMs() - c0);
-            rt.push_back(r.ms);
-          }
+          const RenderResult r = timedRenders(tracer, rt, ct);
           account(row, r, median(bt), median(rt), median(ct), median(bc));
           row.bytes = sah.bytes();
           row.height = sah.stats().depth;
