@@ -82,21 +82,7 @@ TEST(MatrixTreeWatertight, NoRayFallsThroughEdgesOrVerticesOfClosedSpheres) {
     const TriangleMesh mesh = mtest::makeIcosphere(sp.subdiv, sp.radius, sp.center);
     mtest::Rng rng(mtest::seedFor("mt-leaks", sp.subdiv));
     const int n = 4000;
-    std::vector<Ray> rays(n);
-    for (int i = 0; i < n; ++i) {
-      const size_t tri = rng.below(static_cast<uint32_t>(mesh.size()));
-      const int k = static_cast<int>(rng.below(3));
-      const Vec3 a = mesh.vertex(tri, k), b = mesh.vertex(tri, (k + 1) % 3);
-      const Vec3 target = i % 3 == 0 ? a : a + (b - a) * (i % 3 == 1 ? 0.5 : rng.uniform());
-      Ray& r = rays[i];
-      if (i % 2 == 0) {
-        r.o = sp.center + rng.direction() * (sp.radius * rng.uniform(0.0, 0.9));
-      } else {
-        const Vec3 w = mtree::normalized(target - sp.center) + rng.direction() * 0.5;
-        r.o = target + w * (sp.radius * rng.uniform(0.5, 3.0));
-      }
-      r.d = target - r.o;
-    }
+    const std::vector<Ray> rays = mtest::edgeAndVertexRays(mesh, sp.center, sp.radius, n, rng);
     for (auto kind : {mtree::TreeKind::Octree, mtree::TreeKind::RegularKd}) {
       const mtree::MatrixTree tree = buildTree(mesh, kind);
       const mtree::MatrixTreeTracer wt{tree, mesh, TriangleTest::Watertight};

@@ -445,22 +445,7 @@ TEST(SahWatertight, NoRayFallsThroughEdgesOrVerticesOfClosedSpheres) {
     const SahKdTree tree(mesh);
     mtest::Rng rng(mtest::seedFor("leaks", sp.subdiv));
     const int n = 6000;
-    std::vector<Ray> rays(n);
-    for (int i = 0; i < n; ++i) {
-      const size_t tri = rng.below(static_cast<uint32_t>(mesh.size()));
-      const int k = static_cast<int>(rng.below(3));
-      const Vec3 a = mesh.vertex(tri, k), b = mesh.vertex(tri, (k + 1) % 3);
-      const Vec3 target = i % 3 == 0 ? a : a + (b - a) * (i % 3 == 1 ? 0.5 : rng.uniform());
-      Ray& r = rays[i];
-      if (i % 2 == 0) {
-        r.o = sp.center + rng.direction() * (sp.radius * rng.uniform(0.0, 0.9));
-        if (i % 8 == 0) r.o = sp.center;
-      } else {  // outside, on the target's side (the ray meets the sphere at the target or before)
-        const Vec3 w = mtree::normalized(target - sp.center) + rng.direction() * 0.5;
-        r.o = target + w * (sp.radius * rng.uniform(0.5, 3.0));
-      }
-      r.d = target - r.o;
-    }
+    const std::vector<Ray> rays = mtest::edgeAndVertexRays(mesh, sp.center, sp.radius, n, rng);
     int mtBrute = 0, wtBrute = 0;
     for (const Ray& r : rays) {
       RayHit h;

@@ -292,6 +292,30 @@ struct Ray {
   double tmin = 0, tmax = std::numeric_limits<double>::infinity();
 };
 
+/// Rays aimed exactly at shared vertices and points of shared edges of a closed sphere mesh
+/// (centre, radius), from inside (every 8th from the centre) and from outside on the target's
+/// side, so each must hit: the watertightness probe of the SAH and matrix-tree tests.
+inline std::vector<Ray> edgeAndVertexRays(const mtree::TriangleMesh& mesh, Vec3 center, double radius, int n,
+                                          Rng& rng) {
+  std::vector<Ray> rays(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    const size_t tri = rng.below(static_cast<uint32_t>(mesh.size()));
+    const int k = static_cast<int>(rng.below(3));
+    const Vec3 a = mesh.vertex(tri, k), b = mesh.vertex(tri, (k + 1) % 3);
+    const Vec3 target = i % 3 == 0 ? a : a + (b - a) * (i % 3 == 1 ? 0.5 : rng.uniform());
+    Ray& r = rays[static_cast<size_t>(i)];
+    if (i % 2 == 0) {
+      r.o = center + rng.direction() * (radius * rng.uniform(0.0, 0.9));
+      if (i % 8 == 0) r.o = center;
+    } else {  // outside, on the target's side (the ray meets the sphere at the target or before)
+      const Vec3 w = mtree::normalized(target - center) + rng.direction() * 0.5;
+      r.o = target + w * (radius * rng.uniform(0.5, 3.0));
+    }
+    r.d = target - r.o;
+  }
+  return rays;
+}
+
 // A random point of triangle i (barycentric, uniform).
 inline Vec3 pointOn(const mtree::TriangleMesh& m, size_t i, Rng& rng) {
   double u = rng.uniform(), v = rng.uniform();
