@@ -6,7 +6,8 @@
  * scalar type, any spacing and origin) with a colour transfer function and a scalar opacity
  * function into an RGBA image seen from a camera. It is the volume-rendering use of the paper's
  * block-sparse matrix (Andrysco & Tricoche 2011, §3): the scalars are stored in 8^3-voxel
- * blocks and only the blocks that a visible sample can read are allocated (a cell is visible when
+ * float blocks, or for 8/16-bit (and integer-valued float) scalars in 8^3-cell bricks with a
+ * 1-voxel apron in their own width, and only what a visible sample can read is allocated (a cell is visible when
  * the opacity function is non-zero somewhere on its corners' value range); above the blocks, the
  * matrix-tree levels mark which bricks and groups of bricks hold a visible cell, and each ray
  * skips invisible nodes top-down. Skipping is exact: switching it off gives the same image.
@@ -164,8 +165,11 @@ public:
   ///@{
   /**
    * Statistics of the last execution. Times in milliseconds. Blocks are 8^3 voxels;
-   * VisibleBlockBytes = allocated blocks * 8^3 * 4, AllocatedBytes adds the pointer matrix, the
-   * per-brick value ranges and the matrix-tree levels; DenseBytes = voxels * 4.
+   * VisibleBlockBytes = (8^3 float blocks holding a corner of a visible cell) * 8^3 * 4, the
+   * reference of the memory target; AllocatedBytes is everything held: those blocks (float
+   * storage) or the visible 9^3-voxel apron bricks in 8/16 bits with their cell masks (see
+   * GetVoxelStorage), plus pointers, per-brick value ranges and the matrix-tree levels;
+   * DenseBytes = voxels * 4.
    */
   vtkGetMacro(LastBuildTime, double);
   vtkGetMacro(LastRenderTime, double);

@@ -1,8 +1,9 @@
 """Volume rendering through ``vtkMatrixTreeVolumeRayCaster``: numpy and pyvista in, RGBA out.
 
-The renderer stores the scalars as a block-sparse matrix of 8x8x8-voxel blocks, allocating only
-the blocks a visible sample can read, and skips invisible space through the matrix-tree levels
-above the blocks (Andrysco & Tricoche 2011, §3). This module converts and delegates.
+The renderer stores only what a visible sample can read (Andrysco & Tricoche 2011, §3): 8/16-bit
+scalars (and float scalars holding only integers) as 8^3-cell bricks with a 1-voxel apron in their
+own width, other scalars as a block-sparse matrix of 8x8x8-voxel float blocks; it skips invisible
+space through the matrix-tree levels above them. This module converts and delegates.
 """
 
 from __future__ import annotations
