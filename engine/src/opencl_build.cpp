@@ -183,51 +183,13 @@ void Builder::build(const TriangleMesh& mesh, const BuildOptions& opt, MatrixTre
   }
   if (!(isFinite(root.lo) && isFinite(root.hi)))
     throw std::invalid_argument("MatrixTree: a primitive has non-finite coordinates (NaN or inf)");
-  // From here to the level shapes: builder.h's setup, operation for operation.
-  {
-    const Vec3 e = root.extent();
-    const double m = std::max(e.x, std::max(e.y, e.z));
-    const double scale = std::max({m, std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
-                                   std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
-    const double minExt = m > 0 ? m * 1e-6 : (scale > 0 ? scale * 1e-9 : 1e-9);
-    for (int a = 0; a < 3; ++a) {
-      const double ext = std::max(e[a], minExt);
-      const double c = 0.5 * (root.lo[a] + root.hi[a]);
-      const double half = 0.5 * ext * (1 + 2e-9) + 4 * std::numeric_limits<double>::epsilon() * std::fabs(c);
-      root.lo[a] = c - half;
-      root.hi[a] = c + half;
-    }
-  }
+  // From here to the level shapes: builder.h's setup (the same functions).
+  root = mtree::detail::padRootBox(root);
   const Vec3 ext = root.extent();
   int H = opt.height;
   if (H == 0) {
-    const int64_t stride = std::max<int64_t>(1, int64_t(n) / 8192);
-    std::vector<double> sizes;
-    std::vector<Box> sample;
-    for (int64_t i = 0; i < int64_t(n); i += stride) {
-      sample.push_back(mesh.bounds(static_cast<size_t>(i)));
-      const Vec3 e = sample.back().extent();
-      sizes.push_back(std::max(e.x, std::max(e.y, e.z)));
-    }
-    std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
-    double med = sizes[sizes.size() / 2];
-    if (!(med > 0)) med = std::max(ext.x, std::max(ext.y, ext.z)) * 1e-3;
-    H = chooseHeight(opt.kind, ext, med, opt.leafScale, opt.blockEdge);
-    auto meanCandidates = [&](int h) {
-      const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
-      double sum = 0;
-      for (const Box& b : sample) {
-        double c = 1;
-        for (int a = 0; a < 3; ++a) {
-          const double inv = std::ldexp(1.0, ld[a]) / ext[a];
-          const int hiCell = (1 << ld[a]) - 1;
-          c *= cellIndex((b.hi[a] - root.lo[a]) * inv, 0, hiCell) - cellIndex((b.lo[a] - root.lo[a]) * inv, 0, hiCell) + 1;
-        }
-        sum += c;
-      }
-      return sum / static_cast<double>(sample.size());
-    };
-    while (H > 0 && meanCandidates(H) > opt.maxCandidates) --H;
+    double med = 0;
+    H = mtree::detail::autoHeight(mesh, opt, root, med);
     if (stats) {
       stats->autoHeight = true;
       stats->medianPrimitiveExtent = med;

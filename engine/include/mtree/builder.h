@@ -12,9 +12,14 @@
 // to positions fixed by a scan, and the sort is stable (primitives in a leaf stay in id order).
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <omp.h>
 
@@ -46,6 +51,68 @@ struct PhaseClock {
     if (stats) stats->totalMs = std::chrono::duration<double, std::milli>(clock::now() - start).count();
   }
 };
+
+/// The root box from the primitives' bounds: a flat or point-like scene gets a non-zero extent on
+/// every axis, and the box is padded by a relative 1e-9 so that points on the bounding box map
+/// inside after round-off. Shared by the CPU and the OpenCL builders (identical trees).
+inline Box padRootBox(Box root) {
+  const Vec3 e = root.extent();
+  const double m = std::max(e.x, std::max(e.y, e.z));
+  const double scale = std::max({m, std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
+                                 std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
+  const double minExt = m > 0 ? m * 1e-6 : (scale > 0 ? scale * 1e-9 : 1e-9);
+  for (int a = 0; a < 3; ++a) {
+    const double ext = std::max(e[a], minExt);
+    const double c = 0.5 * (root.lo[a] + root.hi[a]);
+    const double half = 0.5 * ext * (1 + 2e-9) + 4 * std::numeric_limits<double>::epsilon() * std::fabs(c);
+    root.lo[a] = c - half;
+    root.hi[a] = c + half;
+  }
+  return root;
+}
+
+/// The automatic height (BuildOptions::height == 0) over a padded root box: chooseHeight() from
+/// the median primitive extent of a deterministic sample of at most 8192 primitives (its standard
+/// error is ~1% of the spread, far below the factor 2 between heights), then one level up at a
+/// time while the sampled bounding boxes cover more than opt.maxCandidates leaves on average.
+/// `median` receives the median extent. Shared by the CPU and the OpenCL builders.
+template <class Prims>
+int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, double& median) {
+  const Vec3 ext = root.extent();
+  const int64_t n = static_cast<int64_t>(prims.size());
+  const int64_t stride = std::max<int64_t>(1, n / 8192);
+  std::vector<double> sizes;
+  std::vector<Box> sample;
+  sizes.reserve(static_cast<size_t>(n / stride + 1));
+  sample.reserve(sizes.capacity());
+  for (int64_t i = 0; i < n; i += stride) {
+    sample.push_back(prims.bounds(static_cast<size_t>(i)));
+    const Vec3 e = sample.back().extent();
+    sizes.push_back(std::max(e.x, std::max(e.y, e.z)));
+  }
+  std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
+  double med = sizes[sizes.size() / 2];
+  if (!(med > 0)) med = std::max(ext.x, std::max(ext.y, ext.z)) * 1e-3;  // degenerate primitives
+  median = med;
+  int H = chooseHeight(opt.kind, ext, med, opt.leafScale, opt.blockEdge);
+  // Mean number of candidate leaves (bounding-box cells) of the sampled primitives at height h.
+  auto meanCandidates = [&](int h) {
+    const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
+    double sum = 0;
+    for (const Box& b : sample) {
+      double c = 1;
+      for (int a = 0; a < 3; ++a) {
+        const double inv = std::ldexp(1.0, ld[a]) / ext[a];
+        const int hiCell = (1 << ld[a]) - 1;
+        c *= cellIndex((b.hi[a] - root.lo[a]) * inv, 0, hiCell) - cellIndex((b.lo[a] - root.lo[a]) * inv, 0, hiCell) + 1;
+      }
+      sum += c;
+    }
+    return sum / static_cast<double>(sample.size());
+  };
+  while (H > 0 && meanCandidates(H) > opt.maxCandidates) --H;
+  return H;
+}
 }  // namespace detail
 
 template <class Prims>
@@ -104,59 +171,14 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     clock.finish();
     return;
   }
-  // Give a flat or point-like scene a non-zero extent on every axis, and pad by a relative 1e-9
-  // so that points on the bounding box map inside after round-off.
-  {
-    const Vec3 e = root.extent();
-    const double m = std::max(e.x, std::max(e.y, e.z));
-    const double scale = std::max({m, std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
-                                   std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
-    const double minExt = m > 0 ? m * 1e-6 : (scale > 0 ? scale * 1e-9 : 1e-9);
-    for (int a = 0; a < 3; ++a) {
-      const double ext = std::max(e[a], minExt);
-      const double c = 0.5 * (root.lo[a] + root.hi[a]);
-      const double half = 0.5 * ext * (1 + 2e-9) + 4 * std::numeric_limits<double>::epsilon() * std::fabs(c);
-      root.lo[a] = c - half;
-      root.hi[a] = c + half;
-    }
-  }
+  root = detail::padRootBox(root);
   tree.root_ = root;
   const Vec3 ext = root.extent();
 
   int H = opt.height;
   if (H == 0) {
-    // Median primitive extent from a deterministic sample of at most 8192 primitives
-    // (its standard error is ~1% of the spread, far below the factor 2 between heights).
-    const int64_t stride = std::max<int64_t>(1, n / 8192);
-    std::vector<double> sizes;
-    std::vector<Box> sample;
-    sizes.reserve(static_cast<size_t>(n / stride + 1));
-    sample.reserve(sizes.capacity());
-    for (int64_t i = 0; i < n; i += stride) {
-      sample.push_back(prims.bounds(i));
-      const Vec3 e = sample.back().extent();
-      sizes.push_back(std::max(e.x, std::max(e.y, e.z)));
-    }
-    std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
-    double med = sizes[sizes.size() / 2];
-    if (!(med > 0)) med = std::max(ext.x, std::max(ext.y, ext.z)) * 1e-3;  // degenerate primitives
-    H = chooseHeight(opt.kind, ext, med, opt.leafScale, opt.blockEdge);
-    // Mean number of candidate leaves (bounding-box cells) of the sampled primitives at H.
-    auto meanCandidates = [&](int h) {
-      const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
-      double sum = 0;
-      for (const Box& b : sample) {
-        double c = 1;
-        for (int a = 0; a < 3; ++a) {
-          const double inv = std::ldexp(1.0, ld[a]) / ext[a];
-          const int hiCell = (1 << ld[a]) - 1;
-          c *= cellIndex((b.hi[a] - root.lo[a]) * inv, 0, hiCell) - cellIndex((b.lo[a] - root.lo[a]) * inv, 0, hiCell) + 1;
-        }
-        sum += c;
-      }
-      return sum / static_cast<double>(sample.size());
-    };
-    while (H > 0 && meanCandidates(H) > opt.maxCandidates) --H;
+    double med = 0;
+    H = detail::autoHeight(prims, opt, root, med);
     if (stats) {
       stats->autoHeight = true;
       stats->medianPrimitiveExtent = med;
