@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "mtree/opencl.h"
+#include "opencl_test_util.h"
 #include "test_util.h"
 
 namespace {
@@ -27,33 +28,6 @@ using mtree::TreeKind;
 using mtree::Vec3;
 namespace ocl = mtree::ocl;
 
-/// The shared context, or nullptr with the reason (printed once) when there is no device.
-std::shared_ptr<ocl::Context> device(std::string* why) {
-  static std::shared_ptr<ocl::Context> ctx;
-  static std::string reason;
-  static bool tried = false;
-  if (!tried) {
-    tried = true;
-    try {
-      ctx = ocl::Context::shared();
-      std::printf("[ opencl   ] device: %s\n", ctx->deviceLabel().c_str());
-    } catch (const ocl::Error& e) {
-      reason = e.what();
-      std::printf("[ opencl   ] no OpenCL device, skipping: %s\n", reason.c_str());
-    }
-  }
-  *why = reason;
-  return ctx;
-}
-
-#define REQUIRE_DEVICE(ctx)                            \
-  std::string why_;                                    \
-  auto ctx = device(&why_);                            \
-  if (!ctx) {                                          \
-    GTEST_SKIP() << "no OpenCL device: " << why_;      \
-  }                                                    \
-  do {                                                 \
-  } while (0)
 
 /// Asserts that two trees are the same, array for array.
 void expectSameTree(const MatrixTree& cpu, const MatrixTree& gpu, const ocl::Builder* b, const std::string& what) {

@@ -27,38 +27,13 @@
 
 #include "mtree/opencl.h"
 #include "mtree/volume.h"
+#include "opencl_test_util.h"
 #include "test_util.h"
 
 namespace {
 
 using namespace mtree;
 
-std::shared_ptr<ocl::Context> device(std::string* why) {
-  static std::shared_ptr<ocl::Context> ctx;
-  static std::string reason;
-  static bool tried = false;
-  if (!tried) {
-    tried = true;
-    try {
-      ctx = ocl::Context::shared();
-      std::printf("[ opencl   ] device: %s\n", ctx->deviceLabel().c_str());
-    } catch (const ocl::Error& e) {
-      reason = e.what();
-      std::printf("[ opencl   ] no OpenCL device, skipping: %s\n", reason.c_str());
-    }
-  }
-  *why = reason;
-  return ctx;
-}
-
-#define REQUIRE_DEVICE(ctx)                       \
-  std::string why_;                               \
-  auto ctx = device(&why_);                       \
-  if (!ctx) {                                     \
-    GTEST_SKIP() << "no OpenCL device: " << why_; \
-  }                                               \
-  do {                                            \
-  } while (0)
 
 /// Transparent below `threshold` (fraction of [lo, hi]), a colour and opacity ramp above.
 TransferTable rampTable(double lo, double hi, double threshold, float maxAlpha, int n = 1024) {
