@@ -169,24 +169,7 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
     img.rgba = std::move(small);
   } else {
     // renderVolume's bilinear reconstruction from the coarse image, on the host.
-    const int W = cam.width, H = cam.height;
-    img.rgba.assign(size_t(W) * H * 4, 0.f);
-#pragma omp parallel for num_threads(resolveThreads(opt.threads)) schedule(static)
-    for (int y = 0; y < H; ++y) {
-      const double sy = std::min(std::max((y + 0.5) * h / H - 0.5, 0.0), double(h - 1));
-      const int y0 = std::min(static_cast<int>(sy), h - 1), y1 = std::min(y0 + 1, h - 1);
-      const float fy = float(sy - y0);
-      for (int x = 0; x < W; ++x) {
-        const double sx = std::min(std::max((x + 0.5) * w / W - 0.5, 0.0), double(w - 1));
-        const int x0 = std::min(static_cast<int>(sx), w - 1), x1 = std::min(x0 + 1, w - 1);
-        const float fx = float(sx - x0);
-        for (int c = 0; c < 4; ++c) {
-          const float a = small[(size_t(y0) * w + x0) * 4 + c], b = small[(size_t(y0) * w + x1) * 4 + c];
-          const float cc = small[(size_t(y1) * w + x0) * 4 + c], d = small[(size_t(y1) * w + x1) * 4 + c];
-          img.rgba[(size_t(y) * W + x) * 4 + c] = (a + fx * (b - a)) * (1 - fy) + (cc + fx * (d - cc)) * fy;
-        }
-      }
-    }
+    img.rgba = upsampleRGBA(small, w, h, cam.width, cam.height, resolveThreads(opt.threads));
   }
   img.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return img;

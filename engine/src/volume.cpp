@@ -835,6 +835,27 @@ void dispatchStorage(const BlockSparseVolume& vol, bool skip, bool shade, const 
 
 }  // namespace
 
+std::vector<float> upsampleRGBA(const std::vector<float>& small, int w, int h, int W, int H, int threads) {
+  std::vector<float> out(size_t(W) * H * 4, 0.f);
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int y = 0; y < H; ++y) {
+    const double sy = std::min(std::max((y + 0.5) * h / H - 0.5, 0.0), double(h - 1));
+    const int y0 = std::min(static_cast<int>(sy), h - 1), y1 = std::min(y0 + 1, h - 1);
+    const float fy = float(sy - y0);
+    for (int x = 0; x < W; ++x) {
+      const double sx = std::min(std::max((x + 0.5) * w / W - 0.5, 0.0), double(w - 1));
+      const int x0 = std::min(static_cast<int>(sx), w - 1), x1 = std::min(x0 + 1, w - 1);
+      const float fx = float(sx - x0);
+      for (int ch = 0; ch < 4; ++ch) {
+        const float a = small[(size_t(y0) * w + x0) * 4 + ch], b = small[(size_t(y0) * w + x1) * 4 + ch];
+        const float cc = small[(size_t(y1) * w + x0) * 4 + ch], d = small[(size_t(y1) * w + x1) * 4 + ch];
+        out[(size_t(y) * W + x) * 4 + ch] = (a + fx * (b - a)) * (1 - fy) + (cc + fx * (d - cc)) * fy;
+      }
+    }
+  }
+  return out;
+}
+
 VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
                          const VolumeCamera& cam, const VolumeRenderOptions& opt) {
   const auto start = std::chrono::steady_clock::now();
@@ -901,25 +922,7 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   if (w == cam.width && h == cam.height) {
     img.rgba = std::move(small);
   } else {
-    // Bilinear reconstruction from the coarse image (VTK's ImageSampleDistance), pixel centres aligned.
-    img.rgba.assign(size_t(cam.width) * cam.height * 4, 0.f);
-    const int W = cam.width, H = cam.height;
-#pragma omp parallel for num_threads(threads) schedule(static)
-    for (int y = 0; y < H; ++y) {
-      const double sy = std::min(std::max((y + 0.5) * h / H - 0.5, 0.0), double(h - 1));
-      const int y0 = std::min(static_cast<int>(sy), h - 1), y1 = std::min(y0 + 1, h - 1);
-      const float fy = float(sy - y0);
-      for (int x = 0; x < W; ++x) {
-        const double sx = std::min(std::max((x + 0.5) * w / W - 0.5, 0.0), double(w - 1));
-        const int x0 = std::min(static_cast<int>(sx), w - 1), x1 = std::min(x0 + 1, w - 1);
-        const float fx = float(sx - x0);
-        for (int ch = 0; ch < 4; ++ch) {
-          const float a = small[(size_t(y0) * w + x0) * 4 + ch], b = small[(size_t(y0) * w + x1) * 4 + ch];
-          const float cc = small[(size_t(y1) * w + x0) * 4 + ch], d = small[(size_t(y1) * w + x1) * 4 + ch];
-          img.rgba[(size_t(y) * W + x) * 4 + ch] = (a + fx * (b - a)) * (1 - fy) + (cc + fx * (d - cc)) * fy;
-        }
-      }
-    }
+    img.rgba = upsampleRGBA(small, w, h, cam.width, cam.height, threads);
   }
   img.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return img;

@@ -265,6 +265,11 @@ struct VolumeImage {
 VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
                          const VolumeCamera& cam, const VolumeRenderOptions& opt);
 
+/// The full-size image from one rendered at w x h pixels (an image sample distance > 1): bilinear
+/// reconstruction with pixel centres aligned, as VTK's ImageSampleDistance. Shared by the CPU and
+/// the OpenCL renderers.
+std::vector<float> upsampleRGBA(const std::vector<float>& small, int w, int h, int W, int H, int threads);
+
 // --------------------------------------------------------------------------------------------
 // BlockSparseVolume::build: the typed part (conversion), the rest is in volume.cpp.
 
