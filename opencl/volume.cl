@@ -253,3 +253,360 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
 
 VR_DEFINE_MARCH(float, f)
 VR_DEFINE_MARCH(double, d)
+
+/* ------------------------------------------------------------------------------------------------
+ * UInt8/UInt16 storage: bricks of DIM^3 cells held as APRON^3 = 9^3 voxels in the input's width
+ * (a 1-voxel apron towards +x/+y/+z, so a cell's 8 corners are in its brick), brick pointers in
+ * level-0 order (MT_NULL = absent), one 64-bit visible-cell mask per brick z layer, and an offset
+ * added to a stored value (signed input). The two marchers below follow the CPU's two marchers
+ * for this storage step for step (engine/src/volume.cpp), so each gives the CPU's image:
+ *   float accumulation  marchApron(): positions P0 + k S in float, interpolation z, then y, then x,
+ *                       the offset added after it, transmittance compositing (C += T e,
+ *                       T *= 1 - a), termination at T <= 1 - threshold;
+ *   double accumulation march() with the apron fetch: positions in double, brick by brick.
+ * Both leave an invisible cell (mask bit clear) unsampled, as the CPU does, so the sample counts
+ * agree too. Extra parameters: ip[14], ip[15] = level-0 bricks along x/y (from the level table),
+ * dp[29] = the storage offset (a float, held in a double). */
+
+#define VR_SY 9
+#define VR_SZ 81
+#define VR_BRICK 729
+
+/* x86's truncating conversions (cvttss2si/cvttsd2si), which the CPU marchers use: the integer
+ * part, or INT_MIN when it does not fit (and for NaN). OpenCL's (int) leaves that undefined. */
+inline int vr_trunc_f(float x) {
+  return (x > -2147483649.0f && x < 2147483648.0f) ? (int)x : (int)0x80000000;
+}
+inline int vr_trunc_d(double x) {
+  return (x > -2147483649.0 && x < 2147483648.0) ? (int)x : (int)0x80000000;
+}
+
+/* The storage-typed helpers, once per voxel type T. */
+#define VR_DEFINE_APRON_HELPERS(T, SFX)                                                                             \
+  /* BlockSparseVolume::cellCorners: the stored corners plus the offset (float), 0 if absent. */                   \
+  inline int vr_apron_cell_##SFX(__global const uint* bptr, __global const T* bricks, int nb0, int nb1,           \
+                                 float offset, int i, int j, int k, float c[8]) {                                  \
+    const uint b = bptr[((size_t)(k >> VR_LOG2DIM) * nb1 + (j >> VR_LOG2DIM)) * nb0 + (i >> VR_LOG2DIM)];          \
+    if (b == MT_NULL) return 0;                                                                                    \
+    __global const T* p = bricks + (size_t)b * VR_BRICK + (i & (VR_DIM - 1)) + VR_SY * (j & (VR_DIM - 1)) +        \
+                          VR_SZ * (k & (VR_DIM - 1));                                                              \
+    for (int n = 0; n < 8; ++n)                                                                                    \
+      c[n] = (float)p[(n & 1) + VR_SY * ((n >> 1) & 1) + VR_SZ * (n >> 2)] + offset;                               \
+    return 1;                                                                                                      \
+  }                                                                                                                \
+  /* The stored corners (no offset) of local cell (lx, ly, lz) of the brick at `base`. */                          \
+  inline void vr_apron_local_##SFX(__global const T* base, int lx, int ly, int lz, float c[8]) {                    \
+    __global const T* p = base + lx + VR_SY * ly + VR_SZ * lz;                                                     \
+    c[0] = (float)p[0];                                                                                            \
+    c[1] = (float)p[1];                                                                                            \
+    c[2] = (float)p[VR_SY];                                                                                        \
+    c[3] = (float)p[VR_SY + 1];                                                                                    \
+    c[4] = (float)p[VR_SZ];                                                                                        \
+    c[5] = (float)p[VR_SZ + 1];                                                                                    \
+    c[6] = (float)p[VR_SZ + VR_SY];                                                                                \
+    c[7] = (float)p[VR_SZ + VR_SY + 1];                                                                            \
+  }
+
+VR_DEFINE_APRON_HELPERS(uchar, u8)
+VR_DEFINE_APRON_HELPERS(ushort, u16)
+
+/* The coarsest empty ancestor of brick (bi, bj, bk), -1 when the brick is visible (levels are ORs
+ * of their children: climb while empty, as the CPU does). */
+inline int vr_empty_level(__global const uchar* occ, __global const int* ip, int levels, int bi, int bj, int bk) {
+  if (vr_visible(occ, ip, 0, bi, bj, bk)) return -1;
+  int e = 0;
+  while (e + 1 < levels && !vr_visible(occ, ip, e + 1, bi >> (e + 1), bj >> (e + 1), bk >> (e + 1))) ++e;
+  return e;
+}
+
+/* The shaded colour of a sample (renderVolume's shadeSample), in R. */
+#define VR_SHADE(R, cc, fx, fy, fz, e, vd, dp, r, g, b)                                                             \
+  do {                                                                                                             \
+    const R gx_ = (1 - (fy)) * (1 - (fz)) * ((cc)[1] - (cc)[0]) + (fy) * (1 - (fz)) * ((cc)[3] - (cc)[2]) +         \
+                  (1 - (fy)) * (fz) * ((cc)[5] - (cc)[4]) + (fy) * (fz) * ((cc)[7] - (cc)[6]);                      \
+    const R gy_ = (1 - (fx)) * (1 - (fz)) * ((cc)[2] - (cc)[0]) + (fx) * (1 - (fz)) * ((cc)[3] - (cc)[1]) +         \
+                  (1 - (fx)) * (fz) * ((cc)[6] - (cc)[4]) + (fx) * (fz) * ((cc)[7] - (cc)[5]);                      \
+    const R gz_ = (1 - (fx)) * (1 - (fy)) * ((cc)[4] - (cc)[0]) + (fx) * (1 - (fy)) * ((cc)[5] - (cc)[1]) +         \
+                  (1 - (fx)) * (fy) * ((cc)[6] - (cc)[2]) + (fx) * (fy) * ((cc)[7] - (cc)[3]);                      \
+    const R wx_ = gx_ / (R)(dp)[18], wy_ = gy_ / (R)(dp)[19], wz_ = gz_ / (R)(dp)[20];                             \
+    const R len_ = sqrt(wx_ * wx_ + wy_ * wy_ + wz_ * wz_);                                                        \
+    r = (e)[0];                                                                                                    \
+    g = (e)[1];                                                                                                    \
+    b = (e)[2];                                                                                                    \
+    if (len_ > 0) {                                                                                                \
+      const R ndl_ = fabs(wx_ * (R)(vd)[0] + wy_ * (R)(vd)[1] + wz_ * (R)(vd)[2]) / len_;                          \
+      const R s_ = (R)(dp)[23] + (R)(dp)[24] * ndl_;                                                               \
+      const R spec_ = (R)(dp)[25] * pow(ndl_, (R)(dp)[26]) * (R)(e)[3];                                            \
+      r = r * s_ + spec_;                                                                                          \
+      g = g * s_ + spec_;                                                                                          \
+      b = b * s_ + spec_;                                                                                          \
+    }                                                                                                              \
+  } while (0)
+
+/* Table entry of value v: TransferTable::index as the CPU's apron marcher computes it (truncation,
+ * then clamped into [0, last]). */
+inline int vr_apron_index(float v, float flo, float fscale, int last) {
+  return min(max(vr_trunc_f((v - flo) * fscale + 0.5f), 0), last);
+}
+
+/* The float marcher (marchApron): one work-item per ray. */
+#define VR_DEFINE_APRON_MARCH_F(T, SFX)                                                                             \
+  __kernel void mt_volume_apron_##SFX##_f(__global const uint* bptr, __global const T* bricks,                     \
+                                          __global const ulong* masks, __global const uchar* occ,                  \
+                                          __global const int* ip, __global const double* dp,                       \
+                                          __global const float* table, __global float* out, __global uint* counts, \
+                                          int w, int h) {                                                          \
+    const int gid = (int)get_global_id(0);                                                                         \
+    if (gid >= w * h) return;                                                                                      \
+    const int x = gid % w, y = gid / w;                                                                            \
+    double o[3], d[3], vd[3], t0, t1;                                                                              \
+    __global float* res = out + 4 * (size_t)gid;                                                                   \
+    if (!vr_setup_ray(ip, dp, x, y, w, h, o, d, vd, &t0, &t1)) {                                                   \
+      res[0] = res[1] = res[2] = res[3] = 0.f;                                                                     \
+      counts[2 * (size_t)gid] = 0;                                                                                 \
+      counts[2 * (size_t)gid + 1] = 0;                                                                             \
+      return;                                                                                                      \
+    }                                                                                                              \
+    const int n[3] = {ip[0], ip[1], ip[2]};                                                                        \
+    const int levels = ip[9], last = ip[10], skip = ip[11], shade = ip[12], nb0 = ip[14], nb1 = ip[15];            \
+    const double dt = dp[21];                                                                                      \
+    const float flo = (float)dp[27], fscale = (float)dp[28], offset = (float)dp[29];                               \
+    const float Tmin = 1.f - (float)dp[22];                                                                        \
+    const double kxe = floor((t1 - t0) / dt);                                                                      \
+    const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
+    const float P0[3] = {(float)(o[0] + d[0] * t0), (float)(o[1] + d[1] * t0), (float)(o[2] + d[2] * t0)};         \
+    const float S[3] = {(float)(d[0] * dt), (float)(d[1] * dt), (float)(d[2] * dt)};                               \
+    uint samples = 0, skips = 0;                                                                                   \
+    float Cr = 0.f, Cg = 0.f, Cb = 0.f, Ca = 0.f, Tr = 1.f;                                                        \
+    long k = 0;                                                                                                    \
+    while (k <= kEnd) {                                                                                            \
+      const float kf0 = (float)k;                                                                                  \
+      int cell[3];                                                                                                 \
+      for (int a = 0; a < 3; ++a) {                                                                                \
+        double f;                                                                                                  \
+        cell[a] = vr_clamp_cell((double)(P0[a] + kf0 * S[a]), n[a], &f);                                           \
+      }                                                                                                            \
+      const int bi = cell[0] >> VR_LOG2DIM, bj = cell[1] >> VR_LOG2DIM, bk = cell[2] >> VR_LOG2DIM;                \
+      const size_t bidx = ((size_t)bk * nb1 + bj) * nb0 + bi;                                                      \
+      int empty = skip ? vr_empty_level(occ, ip, levels, bi, bj, bk) : -1;                                         \
+      const uint bp = empty < 0 ? bptr[bidx] : MT_NULL;                                                            \
+      if (empty < 0 && bp == MT_NULL) empty = 0;                                                                   \
+      if (empty >= 0) {                                                                                            \
+        /* Leave the node at the last sample at or before its exit. */                                             \
+        const double edge = (double)(VR_DIM << empty);                                                             \
+        const int node[3] = {bi >> empty, bj >> empty, bk >> empty};                                               \
+        double kx = (double)INFINITY;                                                                              \
+        for (int a = 0; a < 3; ++a) {                                                                              \
+          const double lo = node[a] * edge, s = (double)S[a];                                                      \
+          if (s > 0) kx = mt_min(kx, (lo + edge - (double)P0[a]) / s);                                             \
+          else if (s < 0) kx = mt_min(kx, (lo - (double)P0[a]) / s);                                               \
+        }                                                                                                          \
+        const double kfl = floor(kx);                                                                              \
+        const long kLast = kfl >= (double)kEnd ? kEnd : (kfl <= (double)k ? k : (long)kfl);                        \
+        if (skip) ++skips;                                                                                         \
+        k = max(k + 1, kLast);                                                                                     \
+        continue;                                                                                                  \
+      }                                                                                                            \
+      __global const T* base = bricks + (size_t)bp * VR_BRICK;                                                     \
+      __global const ulong* mask = masks + bidx * VR_DIM;                                                          \
+      const int org[3] = {bi << VR_LOG2DIM, bj << VR_LOG2DIM, bk << VR_LOG2DIM};                                   \
+      const int lim[3] = {min(VR_DIM - 1, n[0] - 2 - org[0]), min(VR_DIM - 1, n[1] - 2 - org[1]),                  \
+                          min(VR_DIM - 1, n[2] - 2 - org[2])};                                                     \
+      const long kStart = k;                                                                                       \
+      int done = 0;                                                                                                \
+      float kf = (float)k;                                                                                         \
+      for (; k <= kEnd; ++k, kf += 1.f) {                                                                          \
+        float pos[3], fr[3];                                                                                       \
+        int l[3], outside = 0;                                                                                     \
+        for (int a = 0; a < 3; ++a) {                                                                              \
+          pos[a] = P0[a] + kf * S[a];                                                                              \
+          const int t = vr_trunc_f(pos[a]);                                                                        \
+          l[a] = (int)((uint)t - (uint)org[a]);                                                                    \
+          outside |= (l[a] > lim[a]) | (l[a] < 0);                                                                 \
+          const float fa = pos[a] - (float)t;                                                                      \
+          fr[a] = fa > 0.f ? fa : 0.f;                                                                             \
+        }                                                                                                          \
+        if (outside) break; /* left the brick (or needs clamping) */                                               \
+        if (!((mask[l[2]] >> (l[0] + VR_DIM * l[1])) & 1)) continue; /* invisible cell: adds exactly 0 */          \
+        float cc[8];                                                                                               \
+        vr_apron_local_##SFX(base, l[0], l[1], l[2], cc);                                                          \
+        const float fx = fr[0], fy = fr[1], fz = fr[2];                                                            \
+        const float z0 = cc[0] + fz * (cc[4] - cc[0]), z1 = cc[1] + fz * (cc[5] - cc[1]);                          \
+        const float z2 = cc[2] + fz * (cc[6] - cc[2]), z3 = cc[3] + fz * (cc[7] - cc[3]);                          \
+        const float y0 = z0 + fy * (z2 - z0), y1 = z1 + fy * (z3 - z1);                                            \
+        const float v = (y0 + fx * (y1 - y0)) + offset;                                                            \
+        ++samples;                                                                                                 \
+        __global const float* e = table + 4 * vr_apron_index(v, flo, fscale, last);                                \
+        float r = e[0], g = e[1], b = e[2];                                                                        \
+        const float a = e[3];                                                                                      \
+        if (shade) {                                                                                               \
+          if (!(a > 0.f)) continue;                                                                                \
+          VR_SHADE(float, cc, fx, fy, fz, e, vd, dp, r, g, b);                                                     \
+        }                                                                                                          \
+        Cr = Cr + Tr * r;                                                                                          \
+        Cg = Cg + Tr * g;                                                                                          \
+        Cb = Cb + Tr * b;                                                                                          \
+        Ca = Ca + Tr * a;                                                                                          \
+        Tr *= 1.f - a;                                                                                             \
+        if (Tr <= Tmin) {                                                                                          \
+          done = 1;                                                                                                \
+          break;                                                                                                   \
+        }                                                                                                          \
+      }                                                                                                            \
+      if (done) break;                                                                                             \
+      if (k == kStart) {                                                                                           \
+        /* The sample needs clamping (the grid's far face, or outside by round-off). */                            \
+        const float kf1 = (float)k;                                                                                \
+        double f[3];                                                                                               \
+        int c[3];                                                                                                  \
+        for (int a = 0; a < 3; ++a) c[a] = vr_clamp_cell((double)(P0[a] + kf1 * S[a]), n[a], &f[a]);              \
+        float cc[8];                                                                                               \
+        if (vr_apron_cell_##SFX(bptr, bricks, nb0, nb1, offset, c[0], c[1], c[2], cc)) {                           \
+          ++samples;                                                                                               \
+          const float fx = (float)f[0], fy = (float)f[1], fz = (float)f[2];                                        \
+          const float x00 = cc[0] + fx * (cc[1] - cc[0]), x10 = cc[2] + fx * (cc[3] - cc[2]);                      \
+          const float x01 = cc[4] + fx * (cc[5] - cc[4]), x11 = cc[6] + fx * (cc[7] - cc[6]);                      \
+          const float y0 = x00 + fy * (x10 - x00), y1 = x01 + fy * (x11 - x01);                                    \
+          const float v = y0 + fz * (y1 - y0);                                                                     \
+          __global const float* e = table + 4 * vr_apron_index(v, flo, fscale, last);                              \
+          float r = e[0], g = e[1], b = e[2];                                                                      \
+          const float a = e[3];                                                                                    \
+          if (!shade || a > 0.f) {                                                                                 \
+            if (shade) VR_SHADE(float, cc, fx, fy, fz, e, vd, dp, r, g, b);                                        \
+            Cr = Cr + Tr * r;                                                                                      \
+            Cg = Cg + Tr * g;                                                                                      \
+            Cb = Cb + Tr * b;                                                                                      \
+            Ca = Ca + Tr * a;                                                                                      \
+            Tr *= 1.f - a;                                                                                         \
+          }                                                                                                        \
+          if (Tr <= Tmin) break;                                                                                   \
+        }                                                                                                          \
+        ++k;                                                                                                       \
+      }                                                                                                            \
+    }                                                                                                              \
+    res[0] = Cr;                                                                                                   \
+    res[1] = Cg;                                                                                                   \
+    res[2] = Cb;                                                                                                   \
+    res[3] = Ca;                                                                                                   \
+    counts[2 * (size_t)gid] = samples;                                                                             \
+    counts[2 * (size_t)gid + 1] = skips;                                                                           \
+  }
+
+/* The double marcher (march() with the apron fetch): positions in double, brick by brick. */
+#define VR_DEFINE_APRON_MARCH_D(T, SFX)                                                                             \
+  __kernel void mt_volume_apron_##SFX##_d(__global const uint* bptr, __global const T* bricks,                     \
+                                          __global const ulong* masks, __global const uchar* occ,                  \
+                                          __global const int* ip, __global const double* dp,                       \
+                                          __global const float* table, __global float* out, __global uint* counts, \
+                                          int w, int h) {                                                          \
+    const int gid = (int)get_global_id(0);                                                                         \
+    if (gid >= w * h) return;                                                                                      \
+    const int x = gid % w, y = gid / w;                                                                            \
+    double o[3], d[3], vd[3], t0, t1;                                                                              \
+    __global float* res = out + 4 * (size_t)gid;                                                                   \
+    if (!vr_setup_ray(ip, dp, x, y, w, h, o, d, vd, &t0, &t1)) {                                                   \
+      res[0] = res[1] = res[2] = res[3] = 0.f;                                                                     \
+      counts[2 * (size_t)gid] = 0;                                                                                 \
+      counts[2 * (size_t)gid + 1] = 0;                                                                             \
+      return;                                                                                                      \
+    }                                                                                                              \
+    const int n[3] = {ip[0], ip[1], ip[2]};                                                                        \
+    const int levels = ip[9], last = ip[10], skip = ip[11], shade = ip[12], nb0 = ip[14], nb1 = ip[15];            \
+    const double dt = dp[21];                                                                                      \
+    const float flo = (float)dp[27], fscale = (float)dp[28], offset = (float)dp[29];                               \
+    const double thr = (double)(float)dp[22];                                                                      \
+    const double kxe = floor((t1 - t0) / dt);                                                                      \
+    const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
+    uint samples = 0, skips = 0;                                                                                   \
+    double A = 0, Cr = 0, Cg = 0, Cb = 0;                                                                          \
+    long k = 0;                                                                                                    \
+    while (k <= kEnd) {                                                                                            \
+      const double t = t0 + (double)k * dt;                                                                        \
+      double f;                                                                                                    \
+      const int bi = vr_clamp_cell(o[0] + d[0] * t, n[0], &f) >> VR_LOG2DIM;                                       \
+      const int bj = vr_clamp_cell(o[1] + d[1] * t, n[1], &f) >> VR_LOG2DIM;                                       \
+      const int bk = vr_clamp_cell(o[2] + d[2] * t, n[2], &f) >> VR_LOG2DIM;                                       \
+      const int empty = skip ? vr_empty_level(occ, ip, levels, bi, bj, bk) : -1;                                   \
+      const int L = empty < 0 ? 0 : empty;                                                                         \
+      const double edge = (double)(VR_DIM << L);                                                                   \
+      const double lo[3] = {(double)(bi >> L) * edge, (double)(bj >> L) * edge, (double)(bk >> L) * edge};         \
+      const double hi[3] = {lo[0] + edge, lo[1] + edge, lo[2] + edge};                                             \
+      const double kx = floor((vr_exit_t(o, d, lo, hi) - t0) / dt);                                                \
+      const long kLast = kx >= (double)kEnd ? kEnd : (kx <= (double)k ? k : (long)kx);                             \
+      if (empty >= 0) {                                                                                            \
+        ++skips;                                                                                                   \
+        k = max(k + 1, kLast);                                                                                     \
+        continue;                                                                                                  \
+      }                                                                                                            \
+      const size_t bidx = ((size_t)bk * nb1 + bj) * nb0 + bi;                                                      \
+      const uint bp = bptr[bidx];                                                                                  \
+      if (bp == MT_NULL) { /* an absent brick (not skipping): every cell is invisible */                           \
+        k = kLast + 1;                                                                                             \
+        continue;                                                                                                  \
+      }                                                                                                            \
+      __global const T* base = bricks + (size_t)bp * VR_BRICK;                                                     \
+      __global const ulong* mask = masks + bidx * VR_DIM;                                                          \
+      const int ox = bi << VR_LOG2DIM, oy = bj << VR_LOG2DIM, oz = bk << VR_LOG2DIM;                               \
+      const uint mx = (uint)min(VR_DIM - 1, n[0] - 2 - ox), my = (uint)min(VR_DIM - 1, n[1] - 2 - oy),             \
+                 mz = (uint)min(VR_DIM - 1, n[2] - 2 - oz);                                                        \
+      double kd = (double)k;                                                                                       \
+      for (; k <= kLast; ++k, kd += 1.0) {                                                                         \
+        const double ts = t0 + kd * dt;                                                                            \
+        const double px = o[0] + d[0] * ts, py = o[1] + d[1] * ts, pz = o[2] + d[2] * ts;                          \
+        const int ix = vr_trunc_d(px), iy = vr_trunc_d(py), iz = vr_trunc_d(pz);                                   \
+        const int lx = (int)((uint)ix - (uint)ox), ly = (int)((uint)iy - (uint)oy), lz = (int)((uint)iz - (uint)oz); \
+        float cc[8];                                                                                               \
+        double fx, fy, fz, off;                                                                                    \
+        if ((((uint)lx > mx) | ((uint)ly > my) | ((uint)lz > mz)) == 0) {                                          \
+          fx = mt_max(px - (double)ix, 0.0);                                                                       \
+          fy = mt_max(py - (double)iy, 0.0);                                                                       \
+          fz = mt_max(pz - (double)iz, 0.0);                                                                       \
+          if (!((mask[lz] >> (lx + VR_DIM * ly)) & 1)) continue;                                                   \
+          vr_apron_local_##SFX(base, lx, ly, lz, cc);                                                              \
+          off = (double)offset;                                                                                    \
+        } else {                                                                                                   \
+          double g[3];                                                                                             \
+          const int ci = vr_clamp_cell(px, n[0], &g[0]), cj = vr_clamp_cell(py, n[1], &g[1]),                      \
+                    ck = vr_clamp_cell(pz, n[2], &g[2]);                                                           \
+          if (!vr_apron_cell_##SFX(bptr, bricks, nb0, nb1, offset, ci, cj, ck, cc)) continue;                      \
+          fx = g[0];                                                                                               \
+          fy = g[1];                                                                                               \
+          fz = g[2];                                                                                               \
+          off = 0.0;                                                                                               \
+        }                                                                                                          \
+        ++samples;                                                                                                 \
+        const double x00 = cc[0] + fx * (cc[1] - cc[0]), x10 = cc[2] + fx * (cc[3] - cc[2]);                      \
+        const double x01 = cc[4] + fx * (cc[5] - cc[4]), x11 = cc[6] + fx * (cc[7] - cc[6]);                       \
+        const double y0 = x00 + fy * (x10 - x00), y1 = x01 + fy * (x11 - x01);                                     \
+        const float v = (float)((y0 + fz * (y1 - y0)) + off);                                                      \
+        __global const float* e = table + 4 * vr_index(v, flo, fscale, last);                                      \
+        const double a = e[3];                                                                                     \
+        double r = e[0], g = e[1], b = e[2];                                                                       \
+        if (shade) {                                                                                               \
+          if (!(e[3] > 0.f)) continue;                                                                             \
+          VR_SHADE(double, cc, fx, fy, fz, e, vd, dp, r, g, b);                                                    \
+        }                                                                                                          \
+        const double wgt = 1 - A;                                                                                  \
+        Cr += wgt * r;                                                                                             \
+        Cg += wgt * g;                                                                                             \
+        Cb += wgt * b;                                                                                             \
+        A += wgt * a;                                                                                              \
+        if (A >= thr) {                                                                                            \
+          k = kEnd + 1;                                                                                            \
+          break;                                                                                                   \
+        }                                                                                                          \
+      }                                                                                                            \
+      k = max(k, kLast + 1);                                                                                       \
+    }                                                                                                              \
+    res[0] = (float)Cr;                                                                                            \
+    res[1] = (float)Cg;                                                                                            \
+    res[2] = (float)Cb;                                                                                            \
+    res[3] = (float)A;                                                                                             \
+    counts[2 * (size_t)gid] = samples;                                                                             \
+    counts[2 * (size_t)gid + 1] = skips;                                                                           \
+  }
+
+VR_DEFINE_APRON_MARCH_F(uchar, u8)
+VR_DEFINE_APRON_MARCH_F(ushort, u16)
+VR_DEFINE_APRON_MARCH_D(uchar, u8)
+VR_DEFINE_APRON_MARCH_D(ushort, u16)

@@ -16,11 +16,15 @@ namespace mtree {
 namespace ocl {
 
 struct VolumeRenderer::State {
-  Buffer ptr, data, occ, ip, dp, table, out, counts;
+  // ptr/data: the float layout's pointer matrix and DIM^3 blocks, or the apron layout's brick
+  // pointers and 9^3 bricks (8 or 16 bits); masks: the apron layout's visible-cell words.
+  Buffer ptr, data, masks, occ, ip, dp, table, out, counts;
   std::vector<int32_t> levelInts;  // per level: dims x/y/z, offset into occ
   int n[3] = {0, 0, 0}, logBlock[3] = {0, 0, 0}, ptrDims[2] = {0, 0};
   uint32_t blockVolume = 0;
   int levels = 0;
+  VoxelStorage storage = VoxelStorage::Float32;
+  float offset = 0;
   bool uploaded = false;
 };
 
@@ -38,11 +42,8 @@ void VolumeRenderer::upload(const BlockSparseVolume& vol) {
   S.uploaded = false;
   const BlockSparseMatrix<float>& m = vol.voxels();
   const MtSparseDesc& d = m.desc();
-  // The kernel reads the float blocks (DIM^3 voxels each); a volume whose visible blocks are not
-  // held there (another voxel storage) is refused rather than rendered empty.
-  if (d.numBlocks == 0 && vol.stats().blocksAllocated > 0)
-    throw std::invalid_argument("VolumeRenderer (OpenCL): the volume's voxels are not in float blocks; build it "
-                                "from float input (or without compact storage)");
+  S.storage = vol.storage();
+  S.offset = vol.storageOffset();
   for (int a = 0; a < 3; ++a) {
     S.n[a] = vol.dim(a);
     S.logBlock[a] = d.logBlock[a];
@@ -68,8 +69,20 @@ void VolumeRenderer::upload(const BlockSparseVolume& vol) {
     b.ensure(impl, bytes, what);
     run.write(b, src, bytes, what);
   };
-  put(S.ptr, m.pointers().data(), m.pointers().size() * sizeof(uint32_t), "volume pointer matrix");
-  put(S.data, m.data().data(), m.data().size() * sizeof(float), "volume blocks");
+  // Each storage is uploaded as the CPU holds it (no conversion), so the device reads the same
+  // bits: the float blocks, or the 8/16-bit apron bricks with their cell masks.
+  auto putVec = [&](Buffer& b, const auto& v, const char* what) { put(b, v.data(), v.size() * sizeof(v[0]), what); };
+  if (S.storage == VoxelStorage::Float32) {
+    putVec(S.ptr, m.pointers(), "volume pointer matrix");
+    putVec(S.data, m.data(), "volume blocks");
+  } else {
+    putVec(S.ptr, vol.brickPointers(), "volume brick pointers");
+    if (S.storage == VoxelStorage::UInt8)
+      putVec(S.data, vol.bricks8(), "volume 8-bit bricks");
+    else
+      putVec(S.data, vol.bricks16(), "volume 16-bit bricks");
+    putVec(S.masks, vol.cellMasks(), "volume cell masks");
+  }
   put(S.occ, occ.data(), occ.size(), "volume occupancy levels");
   run.finish();
   S.uploaded = true;
@@ -125,13 +138,15 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
                              S.ptrDims[1], static_cast<int32_t>(S.blockVolume), S.levels, last,
                              opt.emptySpaceSkipping ? 1 : 0, opt.shade ? 1 : 0, cam.parallel ? 1 : 0};
   ip.insert(ip.end(), S.levelInts.begin(), S.levelInts.end());
-  const double threshold = opt.earlyTermination >= 1 ? 2.0 : std::max(0.0, opt.earlyTermination);
+  // The CPU compares against the threshold as a float (Frame::threshold): send that value.
+  const double threshold =
+      double(static_cast<float>(opt.earlyTermination >= 1 ? 2.0 : std::max(0.0, opt.earlyTermination)));
   const std::vector<double> dp = {cam.position.x, cam.position.y, cam.position.z, fwd.x, fwd.y, fwd.z,
                                   right.x, right.y, right.z, up.x, up.y, up.z, th, aspect, cam.parallelScale,
                                   geo.origin[0], geo.origin[1], geo.origin[2],
                                   geo.spacing[0], geo.spacing[1], geo.spacing[2], opt.sampleDistance, threshold,
                                   opt.ambient, opt.diffuse, opt.specular, opt.specularPower, double(flo),
-                                  double(fscale)};
+                                  double(fscale), double(S.offset)};
 
   Context::Impl& impl = ctx_->impl();
   std::lock_guard<std::recursive_mutex> lock(impl.mutex);
@@ -150,8 +165,16 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
     S.out.ensure(impl, small.size() * sizeof(float), "volume image");
     S.counts.ensure(impl, counts.size() * sizeof(uint32_t), "volume ray counters");
     const cl_int cw = w, ch = h;
-    run.run(opt.doublePrecision ? "mt_volume_march_d" : "mt_volume_march_f", rays, 0, S.ptr, S.data, S.occ, S.ip,
-            S.dp, S.table, S.out, S.counts, cw, ch);
+    if (S.storage == VoxelStorage::Float32) {
+      run.run(opt.doublePrecision ? "mt_volume_march_d" : "mt_volume_march_f", rays, 0, S.ptr, S.data, S.occ, S.ip,
+              S.dp, S.table, S.out, S.counts, cw, ch);
+    } else {
+      // The apron marchers: the CPU's marchApron (float) or march() over apron bricks (double).
+      const bool u8 = S.storage == VoxelStorage::UInt8;
+      const char* name = opt.doublePrecision ? (u8 ? "mt_volume_apron_u8_d" : "mt_volume_apron_u16_d")
+                                             : (u8 ? "mt_volume_apron_u8_f" : "mt_volume_apron_u16_f");
+      run.run(name, rays, 0, S.ptr, S.data, S.masks, S.occ, S.ip, S.dp, S.table, S.out, S.counts, cw, ch);
+    }
     run.read(S.out, small.data(), small.size() * sizeof(float), "volume image");
     run.read(S.counts, counts.data(), counts.size() * sizeof(uint32_t), "volume ray counters");
     run.finish();

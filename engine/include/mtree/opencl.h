@@ -149,14 +149,21 @@ class Tracer {
   std::unique_ptr<State> st_;
 };
 
-/// Volume ray casting on the device (opencl/volume.cl) over a BlockSparseVolume uploaded once:
-/// its pointer matrix, its allocated blocks and its matrix-tree occupancy levels. render() takes
-/// renderVolume()'s arguments and gives its image: same rays, samples at the same t, trilinear
-/// interpolation through the blocks, the same step-corrected table, front-to-back compositing,
-/// early termination and empty-space skipping (same samples and skips counted). Unshaded
-/// images match the CPU's bit for bit on PoCL; with opt.shade the device's float division, sqrt
-/// and pow (a few ulp in OpenCL) leave differences of ~1e-6. opt.threads only affects the host
-/// upsampling when imageSampleDistance > 1. img.ms: host wall time of the whole call.
+/// Volume ray casting on the device (opencl/volume.cl) over a BlockSparseVolume uploaded once,
+/// in every voxel storage the CPU renders, as the CPU holds it (no conversion, no extra copy):
+/// Float32: the pointer matrix and the allocated DIM^3 float blocks; UInt8/UInt16: the brick
+/// pointers, the visible (DIM+1)^3 apron bricks in 8 or 16 bits and their cell masks; plus the
+/// matrix-tree occupancy levels. Device memory is therefore the engine's own stats().bytes, less
+/// the per-brick ranges. render() takes renderVolume()'s arguments and gives its image: same
+/// rays, samples at the same t, trilinear interpolation, the same step-corrected table,
+/// compositing, early termination and empty-space skipping (same samples and skips counted). For
+/// each storage the kernel follows the CPU marcher of that storage step for step (Float32: the
+/// double-position march; UInt8/UInt16 in float: marchApron's float positions, z-y-x
+/// interpolation and transmittance compositing; in double: the brick-by-brick march), so unshaded
+/// images match the CPU's bit for bit on PoCL (x86-64 host, whose CPU marcher for 8/16 bits is
+/// the SSE2 one); with opt.shade the device's float division, sqrt and pow (a few ulp in OpenCL)
+/// leave differences of ~1e-7. opt.threads only affects the host upsampling when
+/// imageSampleDistance > 1. img.ms: host wall time of the whole call.
 class VolumeRenderer {
  public:
   explicit VolumeRenderer(std::shared_ptr<Context> ctx = nullptr);
@@ -165,6 +172,7 @@ class VolumeRenderer {
   VolumeRenderer& operator=(const VolumeRenderer&) = delete;
 
   /// Copies `vol` (built: levelCount() > 0) to the device; throws std::invalid_argument if not.
+  /// Call again only when the volume was rebuilt (reclassified): renders reuse the upload.
   void upload(const BlockSparseVolume& vol);
   bool uploaded() const;
   /// Same contract as renderVolume (invalid arguments throw std::invalid_argument); `tf` must
