@@ -13,12 +13,15 @@
 #include "vtkStreamingDemandDrivenPipeline.h"
 #include "vtkUnsignedCharArray.h"
 
+#include "mtree/opencl.h"
 #include "mtree/volume.h"
 
 #include <algorithm>
 #include <cmath>
 #include <exception>
 #include <limits>
+#include <memory>
+#include <string>
 #include <vector>
 
 struct vtkMatrixTreeVolumeRayCasterInternals
@@ -32,6 +35,13 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   bool Dense = false;
   double Range[2] = { 0, 1 };
   bool Force = false;
+
+  // The OpenCL backend: the device renderer for the selector, and whether it holds the current
+  // classification (cleared by every rebuild, so a render uploads again only after one).
+  std::unique_ptr<mtree::ocl::VolumeRenderer> CLRenderer;
+  std::string CLSelector;
+  std::string CLDeviceName;
+  bool CLUploaded = false;
 };
 
 vtkStandardNewMacro(vtkMatrixTreeVolumeRayCaster);
@@ -51,7 +61,14 @@ vtkMatrixTreeVolumeRayCaster::~vtkMatrixTreeVolumeRayCaster()
 {
   this->SetColorTransferFunction(nullptr);
   this->SetScalarOpacity(nullptr);
+  this->SetOpenCLDevice(nullptr);
   delete this->Internals;
+}
+
+//------------------------------------------------------------------------------
+const char* vtkMatrixTreeVolumeRayCaster::GetOpenCLDeviceName() const
+{
+  return this->Internals->CLDeviceName.c_str();
 }
 
 //------------------------------------------------------------------------------
@@ -284,6 +301,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       in.TableSize = this->TableSize;
       in.Dense = this->DenseStorage;
       in.BuildTime.Modified();
+      in.CLUploaded = false;
       this->LastRebuilt = true;
       const mtree::VolumeStats& s = in.Volume.stats();
       this->LastBuildTime = s.buildMs;
@@ -320,7 +338,42 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     ro.specular = this->Specular;
     ro.specularPower = this->SpecularPower;
     ro.threads = this->NumberOfThreads;
-    const mtree::VolumeImage img = mtree::renderVolume(in.Volume, geo, table, cam, ro);
+    mtree::VolumeImage img;
+    if (this->Backend == OPENCL)
+    {
+      try
+      {
+        const std::string selector = this->OpenCLDevice ? this->OpenCLDevice : "";
+        if (!in.CLRenderer || selector != in.CLSelector)
+        {
+          in.CLRenderer.reset();
+          in.CLUploaded = false;
+          in.CLDeviceName.clear();
+          in.CLRenderer.reset(new mtree::ocl::VolumeRenderer(mtree::ocl::Context::shared(selector)));
+          in.CLSelector = selector;
+          in.CLDeviceName = in.CLRenderer->context().device().name;
+        }
+        if (!in.CLUploaded)
+        {
+          in.CLRenderer->upload(in.Volume);
+          in.CLUploaded = true;
+          ++this->NumberOfOpenCLUploads;
+        }
+        img = in.CLRenderer->render(geo, table, cam, ro);
+      }
+      catch (const mtree::ocl::Error& e)
+      {
+        // The volume is classified: keep it, so that a switch to the CPU backend renders at once.
+        in.CLUploaded = false;
+        vtkErrorMacro("Volume rendering failed (opencl backend): "
+          << e.what() << " (use SetBackendToCPU(), or install an OpenCL driver such as pocl-opencl-icd)");
+        return 0;
+      }
+    }
+    else
+    {
+      img = mtree::renderVolume(in.Volume, geo, table, cam, ro);
+    }
     this->LastRenderTime = img.ms;
     this->NumberOfSamples = static_cast<vtkIdType>(img.samples);
     this->NumberOfSkips = static_cast<vtkIdType>(img.skips);
@@ -348,7 +401,8 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
   catch (const std::exception& e)
   {
     in.Built = in.Built && !rebuild;
-    vtkErrorMacro("Volume rendering failed: " << e.what());
+    in.CLUploaded = false;
+    vtkErrorMacro("Volume rendering failed (" << this->GetBackendAsString() << " backend): " << e.what());
     return 0;
   }
   return 1;
@@ -381,6 +435,9 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "Specular: " << this->Specular << "\n";
   os << indent << "SpecularPower: " << this->SpecularPower << "\n";
   os << indent << "DenseStorage: " << this->DenseStorage << "\n";
+  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
+  os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
+  os << indent << "OpenCLDeviceName: " << this->GetOpenCLDeviceName() << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   os << indent << "LastBuildTime: " << this->LastBuildTime << "\n";
   os << indent << "LastRenderTime: " << this->LastRenderTime << "\n";
@@ -397,4 +454,5 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "NumberOfSkips: " << this->NumberOfSkips << "\n";
   os << indent << "NumberOfNonFiniteScalars: " << this->NumberOfNonFiniteScalars << "\n";
   os << indent << "VoxelStorage: " << this->VoxelStorage << "\n";
+  os << indent << "NumberOfOpenCLUploads: " << this->NumberOfOpenCLUploads << "\n";
 }

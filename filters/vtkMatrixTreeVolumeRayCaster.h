@@ -1,6 +1,6 @@
 /**
  * @class   vtkMatrixTreeVolumeRayCaster
- * @brief   CPU volume ray caster on a block-sparse volume with matrix-tree empty-space skipping
+ * @brief   volume ray caster (CPU or OpenCL) on a block-sparse volume with matrix-tree empty-space skipping
  *
  * vtkMatrixTreeVolumeRayCaster renders the point scalars of a vtkImageData (one component, any
  * scalar type, any spacing and origin) with a colour transfer function and a scalar opacity
@@ -18,6 +18,18 @@
  * (alpha' = 1 - (1 - alpha)^(SampleDistance / ScalarOpacityUnitDistance)), front-to-back
  * compositing, early termination at EarlyTerminationThreshold, optional gradient shading with
  * a headlight. OpenMP over image rows.
+ *
+ * Backend: CPU (default, the OpenMP marcher above) or OPENCL (mtree::ocl::VolumeRenderer, the
+ * kernels of opencl/volume.cl on the device OpenCLDevice selects). The volume is classified and
+ * stored on the host either way, in the same storage (float blocks or 8/16-bit apron bricks:
+ * every input the CPU path accepts); the OpenCL backend copies that storage to the device as is,
+ * so device memory equals AllocatedBytes (less the per-brick value ranges), and keeps the upload
+ * across renders: it uploads again only when the volume is reclassified (the conditions below)
+ * or the device changes (GetNumberOfOpenCLUploads counts the uploads). The device image equals
+ * the CPU's: identical unshaded on PoCL, within ~1e-7 shaded (OpenCL's float sqrt, division and
+ * pow are not correctly rounded). OPENCL without an OpenCL device, with a selector that matches
+ * none, or in a build without OpenCL makes RequestData fail with an error saying so (empty
+ * output); nothing falls back silently to the CPU.
  *
  * The output vtkImageData (ImageSize[0] x ImageSize[1] x 1, row 0 at the bottom) has point arrays
  * - "RGBA"       unsigned char, 4 components: colour composited over black, opacity (active scalars);
@@ -153,6 +165,37 @@ public:
   vtkBooleanMacro(DenseStorage, bool);
   ///@}
 
+  enum Backends
+  {
+    CPU = 0,
+    OPENCL = 1
+  };
+
+  ///@{
+  /**
+   * Where the rays are marched: CPU (default) or OPENCL (see the class description). Changing it
+   * does not reclassify the volume.
+   */
+  vtkSetClampMacro(Backend, int, CPU, OPENCL);
+  vtkGetMacro(Backend, int);
+  void SetBackendToCPU() { this->SetBackend(CPU); }
+  void SetBackendToOpenCL() { this->SetBackend(OPENCL); }
+  const char* GetBackendAsString() const { return this->Backend == OPENCL ? "opencl" : "cpu"; }
+  ///@}
+
+  ///@{
+  /**
+   * OpenCL device selector (default empty: $MATRIXTREE_OPENCL_DEVICE, else the first GPU, else
+   * the first device; "P:D" = device D of platform P; "N" = the N-th device; other text = the
+   * first device whose name contains it). Used only with Backend OPENCL.
+   */
+  vtkSetStringMacro(OpenCLDevice);
+  vtkGetStringMacro(OpenCLDevice);
+  ///@}
+
+  /** Name of the OpenCL device of the last OpenCL render ("" if none). */
+  const char* GetOpenCLDeviceName() const;
+
   ///@{
   /** OpenMP threads (0 = all, default). */
   vtkSetClampMacro(NumberOfThreads, int, 0, 4096);
@@ -188,6 +231,8 @@ public:
   /// How the voxels are held: 0 float blocks, 1 8-bit and 2 16-bit bricks with a 1-voxel apron
   /// (8/16-bit integer scalars, or float scalars that hold only integers: lossless).
   vtkGetMacro(VoxelStorage, int);
+  /// Times the volume was copied to the OpenCL device (once per classification and device).
+  vtkGetMacro(NumberOfOpenCLUploads, vtkIdType);
   ///@}
 
   /** Includes the transfer functions' modification times. */
@@ -224,6 +269,8 @@ protected:
   double Specular = 0.2;
   double SpecularPower = 10.0;
   bool DenseStorage = false;
+  int Backend = CPU;
+  char* OpenCLDevice = nullptr;
   int NumberOfThreads = 0;
 
   double LastBuildTime = 0;
@@ -241,6 +288,7 @@ protected:
   vtkIdType NumberOfSkips = 0;
   vtkIdType NumberOfNonFiniteScalars = 0;
   int VoxelStorage = 0;
+  vtkIdType NumberOfOpenCLUploads = 0;
 
 private:
   vtkMatrixTreeVolumeRayCaster(const vtkMatrixTreeVolumeRayCaster&) = delete;

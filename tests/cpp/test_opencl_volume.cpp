@@ -15,12 +15,19 @@
 // Suite "opencl_volume", so that ctest -R opencl selects it.
 #include <gtest/gtest.h>
 
+#include <vtkColorTransferFunction.h>
+#include <vtkCommand.h>
 #include <vtkDataArray.h>
+#include <vtkFloatArray.h>
 #include <vtkImageData.h>
 #include <vtkNew.h>
+#include <vtkPiecewiseFunction.h>
 #include <vtkPointData.h>
+#include <vtkShortArray.h>
 #include <vtkStructuredPoints.h>
 #include <vtkStructuredPointsReader.h>
+
+#include "vtkMatrixTreeVolumeRayCaster.h"
 
 #include <algorithm>
 #include <cmath>
@@ -328,6 +335,146 @@ TEST(opencl_volume, RealCompactVolumesMatchCpu) {
   expectSameImage(dev, iv, ig, itf, ic, io, "ironProt uint8");
   io.shade = true;
   expectSameImage(dev, iv, ig, itf, ic, io, "ironProt uint8 shaded");
+}
+
+/// headsq as a vtkImageData of shorts (the CT as its file holds it).
+vtkSmartPointer<vtkImageData> headsqImage() {
+  const std::vector<int16_t> raw = readHeadsq();
+  if (raw.empty()) return nullptr;
+  auto im = vtkSmartPointer<vtkImageData>::New();
+  im->SetDimensions(64, 64, 93);
+  im->SetSpacing(3.2, 3.2, 1.5);
+  vtkNew<vtkShortArray> a;
+  a->SetName("density");
+  a->SetNumberOfTuples(vtkIdType(raw.size()));
+  std::copy(raw.begin(), raw.end(), a->GetPointer(0));
+  im->GetPointData()->SetScalars(a);
+  return im;
+}
+
+/// The RGBAFloat output of the filter after an Update (empty when it failed).
+std::vector<float> rgbaOf(vtkMatrixTreeVolumeRayCaster* f) {
+  f->Update();
+  vtkFloatArray* a = vtkFloatArray::SafeDownCast(f->GetOutput()->GetPointData()->GetArray("RGBAFloat"));
+  if (!a) return {};
+  return std::vector<float>(a->GetPointer(0), a->GetPointer(0) + a->GetNumberOfValues());
+}
+
+double maxDiff(const std::vector<float>& a, const std::vector<float>& b) {
+  EXPECT_EQ(a.size(), b.size());
+  double m = 0;
+  for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) m = std::max(m, std::fabs(double(a[i]) - double(b[i])));
+  return m;
+}
+
+/// Counts ErrorEvents and keeps the last message.
+class ErrorCatcher : public vtkCommand {
+ public:
+  static ErrorCatcher* New() { return new ErrorCatcher; }
+  void Execute(vtkObject*, unsigned long, void* data) override {
+    ++count;
+    message = data ? static_cast<const char*>(data) : "";
+  }
+  int count = 0;
+  std::string message;
+};
+
+/// vtkMatrixTreeVolumeRayCaster with Backend OPENCL against Backend CPU on the headsq CT (16-bit
+/// apron bricks): same image, same samples; the device upload is kept across renders (camera
+/// and shading changes) and redone after a reclassification, whose image must again match.
+TEST(opencl_volume, FilterBackendOpenCLEqualsCpu) {
+  REQUIRE_DEVICE(ctx);
+  vtkSmartPointer<vtkImageData> im = headsqImage();
+  ASSERT_TRUE(im) << "cannot read " << mtest::dataPath("volumes/headsq.raw");
+  double range[2];
+  im->GetPointData()->GetScalars()->GetRange(range);
+  vtkNew<vtkColorTransferFunction> ctf;
+  ctf->AddRGBPoint(range[0], 0, 0, 0);
+  ctf->AddRGBPoint(0.5 * (range[0] + range[1]), 0.9, 0.5, 0.3);
+  ctf->AddRGBPoint(range[1], 1, 1, 0.9);
+  vtkNew<vtkPiecewiseFunction> otf;
+  otf->AddPoint(range[0], 0);
+  otf->AddPoint(range[0] + 0.3 * (range[1] - range[0]), 0);
+  otf->AddPoint(range[1], 0.4);
+  vtkNew<vtkMatrixTreeVolumeRayCaster> f;
+  f->SetInputData(im);
+  f->SetColorTransferFunction(ctf);
+  f->SetScalarOpacity(otf);
+  f->SetScalarOpacityUnitDistance(3.2);
+  f->SetImageSize(96, 80);
+  f->SetPosition(-150, 260, -120);
+  f->SetFocalPoint(102, 102, 69);
+  f->SetViewUp(0, 0, 1);
+  f->SetSampleDistance(0.75);
+  EXPECT_EQ(f->GetBackend(), vtkMatrixTreeVolumeRayCaster::CPU);
+
+  auto compare = [&](const char* what, double tol) {
+    SCOPED_TRACE(what);
+    f->SetBackendToCPU();
+    const std::vector<float> cpu = rgbaOf(f);
+    const vtkIdType cpuSamples = f->GetNumberOfSamples();
+    f->SetBackendToOpenCL();
+    const std::vector<float> dev = rgbaOf(f);
+    ASSERT_FALSE(cpu.empty());
+    ASSERT_FALSE(dev.empty()) << "the OpenCL render failed";
+    EXPECT_FALSE(f->GetLastRebuilt()) << "a backend switch must not reclassify";
+    double alpha = 0;
+    for (size_t i = 3; i < cpu.size(); i += 4) alpha += cpu[i];
+    const double d = maxDiff(cpu, dev);
+    std::printf("[ opencl   ] filter headsq %-22s max |cpu - opencl| %.3g, uploads %lld, device %s\n", what, d,
+                static_cast<long long>(f->GetNumberOfOpenCLUploads()), f->GetOpenCLDeviceName());
+    EXPECT_GT(alpha, 50.0) << "the test image should show the head";
+    EXPECT_LE(d, tol);
+    EXPECT_EQ(f->GetNumberOfSamples(), cpuSamples);
+  };
+  compare("unshaded", 1e-5);
+  EXPECT_EQ(f->GetVoxelStorage(), 2) << "16-bit input is held as 16-bit apron bricks";
+  EXPECT_EQ(f->GetNumberOfOpenCLUploads(), 1);
+  EXPECT_STRNE(f->GetOpenCLDeviceName(), "");
+  f->SetShade(true);  // 1e-4: OpenCL's float sqrt, division and pow are a few ulp off
+  compare("shaded", 1e-4);
+  f->SetShade(false);
+  f->SetPosition(300, -100, 200);
+  f->SetDoublePrecision(true);
+  compare("other camera, double", 1e-5);
+  EXPECT_EQ(f->GetNumberOfOpenCLUploads(), 1) << "renders must reuse the upload";
+  // Reclassify: a narrower opacity ramp. The device must get the new bricks.
+  otf->RemoveAllPoints();
+  otf->AddPoint(range[0], 0);
+  otf->AddPoint(range[0] + 0.5 * (range[1] - range[0]), 0);
+  otf->AddPoint(range[1], 0.6);
+  f->SetBackendToOpenCL();
+  f->Update();
+  EXPECT_TRUE(f->GetLastRebuilt());
+  EXPECT_EQ(f->GetNumberOfOpenCLUploads(), 2);
+  compare("reclassified", 1e-5);
+  EXPECT_EQ(f->GetNumberOfOpenCLUploads(), 2);
+}
+
+/// Backend OPENCL with a device selector that matches nothing (what a machine without OpenCL
+/// gives, too): a VTK error naming the backend, an empty output, no crash; the CPU backend then
+/// renders the same filter.
+TEST(opencl_volume, FilterOpenCLWithoutDeviceIsAnError) {
+  vtkSmartPointer<vtkImageData> im = headsqImage();
+  ASSERT_TRUE(im) << "cannot read " << mtest::dataPath("volumes/headsq.raw");
+  vtkNew<vtkMatrixTreeVolumeRayCaster> f;
+  vtkNew<ErrorCatcher> errors;
+  f->AddObserver(vtkCommand::ErrorEvent, errors);
+  f->SetInputData(im);
+  f->SetImageSize(32, 32);
+  f->SetPosition(-150, 260, -120);
+  f->SetFocalPoint(102, 102, 69);
+  f->SetBackendToOpenCL();
+  f->SetOpenCLDevice("no-such-opencl-device-xyz");
+  EXPECT_TRUE(rgbaOf(f).empty());
+  EXPECT_GE(errors->count, 1);
+  EXPECT_NE(errors->message.find("opencl backend"), std::string::npos) << errors->message;
+  EXPECT_EQ(f->GetNumberOfOpenCLUploads(), 0);
+  std::printf("[ opencl   ] expected error: %s\n", errors->message.c_str());
+  const int before = errors->count;
+  f->SetBackendToCPU();
+  EXPECT_FALSE(rgbaOf(f).empty());
+  EXPECT_EQ(errors->count, before);
 }
 
 TEST(opencl_volume, Errors) {
