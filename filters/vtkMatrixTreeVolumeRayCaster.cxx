@@ -366,7 +366,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
         // The volume is classified: keep it, so that a switch to the CPU backend renders at once.
         in.CLUploaded = false;
         vtkErrorMacro("Volume rendering failed (opencl backend): "
-          << e.what() << " (use SetBackendToCPU(), or install an OpenCL driver such as pocl-opencl-icd)");
+          << e.what() << " (or render with SetBackendToCPU())");
         return 0;
       }
     }

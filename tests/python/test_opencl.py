@@ -1,6 +1,7 @@
 """The ``backend="opencl"`` switch against the CPU engine (the reference): the same tree, the
-same first hits and located leaves, the same picture; a clear error for a bad backend name.
-Skipped, with the reason, when the machine has no OpenCL platform."""
+same first hits and located leaves, the same picture; ``render_volume`` gives the CPU's image
+on real 8/16-bit volumes and on float input; clear errors for a bad backend name and for no
+device. The device comparisons are skipped, with the reason, when there is no OpenCL platform."""
 
 import ctypes
 import ctypes.util
@@ -76,3 +77,68 @@ def test_opencl_render_matches_cpu_render(bunny):
     # Same primary hits; shadow rays differ only in their parametrisation (see the ray caster).
     same = np.mean(np.all(a["rgb"] == b["rgb"], axis=2))
     assert same > 0.99, same
+
+
+# ----------------------------------------------------------------------------- volume rendering
+VOLUMES = os.path.join(scenes.data_dir(), "volumes")
+
+
+def test_render_volume_bad_backend_name_is_a_value_error():
+    with pytest.raises(ValueError, match="backend must be 'cpu' or 'opencl'"):
+        matrixtree.render_volume(np.ones((4, 4, 4), np.float32), size=(8, 8), backend="cuda")
+
+
+def test_render_volume_opencl_with_no_matching_device_raises():
+    # A selector that matches no device fails the way a machine without OpenCL does (the next
+    # test removes the platforms altogether): a RuntimeError that says what to do, no crash.
+    with pytest.raises(RuntimeError, match="opencl backend.*backend='cpu'"):
+        matrixtree.render_volume(np.ones((6, 6, 6), np.float32), size=(8, 8), backend="opencl",
+                                 device="no-such-opencl-device-xyz")
+
+
+def test_render_volume_opencl_without_any_platform_raises():
+    # OCL_ICD_VENDORS pointing at an empty folder: the ICD loader finds no platform at all.
+    import subprocess
+    import sys
+    import tempfile
+
+    code = ("import numpy as np, matrixtree\n"
+            "try:\n"
+            "    matrixtree.render_volume(np.ones((6, 6, 6), np.float32), size=(8, 8), backend='opencl')\n"
+            "except RuntimeError as e:\n"
+            "    print('RuntimeError:', e)\n")
+    with tempfile.TemporaryDirectory() as empty:
+        env = dict(os.environ, OCL_ICD_VENDORS=empty)
+        r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "RuntimeError:" in r.stdout and "opencl backend" in r.stdout, r.stdout + r.stderr[-2000:]
+
+
+@needs_device
+@pytest.mark.parametrize("name, storage", [("headsq.mhd", "uint16"), ("ironProt.vtk", "uint8"),
+                                           ("HeadMRVolume.mhd", "uint8")])
+def test_render_volume_opencl_equals_cpu_on_real_volumes(name, storage):
+    im = matrixtree.read_volume(os.path.join(VOLUMES, name))
+    cam = matrixtree.frame_camera(im, azimuth=40, elevation=25)
+    for shade, tol in ((False, 1e-5), (True, 1e-4)):  # shaded: OpenCL's float sqrt/div/pow, a few ulp
+        a, sa = matrixtree.render_volume(im, size=(64, 56), camera=cam, shade=shade, return_stats=True)
+        b, sb = matrixtree.render_volume(im, size=(64, 56), camera=cam, shade=shade, backend="opencl",
+                                         return_stats=True)
+        assert sa["storage"] == sb["storage"] == storage
+        assert sb["backend"] == "opencl" and sb["device"]
+        assert a[..., 3].mean() > 0.02, "the image should show the volume"
+        assert np.abs(a - b).max() <= tol, (name, shade, np.abs(a - b).max())
+        assert sa["samples"] == sb["samples"]
+
+
+@needs_device
+def test_render_volume_opencl_equals_cpu_on_float_input():
+    # Non-integer floats: the float-block storage, in double accumulation too.
+    x, y, z = np.mgrid[-1:1:33j, -1:1:29j, -1:1:41j]
+    field = (np.exp(-4 * (x ** 2 + (y - 0.2) ** 2 + z ** 2)) + 0.3 * np.sin(5 * x * y)).astype(np.float32)
+    for double in (False, True):
+        a, sa = matrixtree.render_volume(field, size=(48, 40), double_precision=double, return_stats=True)
+        b = matrixtree.render_volume(field, size=(48, 40), double_precision=double, backend="opencl")
+        assert sa["storage"] == "float32"
+        assert a[..., 3].mean() > 0.02
+        assert np.abs(a - b).max() <= 1e-5
