@@ -10,6 +10,8 @@ no early termination); allocated vs dense blocks and bytes; and our speed/accura
 sample distance. VTK renders off-screen, so run it under a display, e.g.
 
     xvfb-run -a .venv/bin/python bench/volume.py --json out/volume.json --md docs/bench_volume.md
+
+``--backend all`` adds our OpenCL backend (row ``matrixtree-opencl``, with ``max_diff_vs_cpu``).
 """
 
 from __future__ import annotations
@@ -134,7 +136,7 @@ class Vtk:
 
 
 # -------------------------------------------------------------------------------------- main
-def bench_volume(path: str, size, frames: int, threads: int) -> tuple[list, dict]:
+def bench_volume(path: str, size, frames: int, threads: int, backend: str = "cpu") -> tuple[list, dict]:
     name = os.path.basename(path).split(".")[0]
     image = read_volume(path)
     sp = np.abs(np.array(image.GetSpacing()))
@@ -154,12 +156,25 @@ def bench_volume(path: str, size, frames: int, threads: int) -> tuple[list, dict
     matched = dict(SampleDistance=sd, DoublePrecision=False, EarlyTerminationThreshold=0.99, EmptySpaceSkipping=True)
     vtk.frame()  # warm-up: VTK builds its min/max volume and tables on the first render
     ours.frame(**matched)
-    t_vtk, t_ours, t_noskip = [], [], []
+    dev = None
+    if backend != "cpu":
+        # Our OpenCL backend: its own filter (classified once, uploaded once), warmed up so that
+        # the kernel compile and the upload are not timed; frames interleaved with the CPU's.
+        dev = Ours(image, ctf, otf, unit, size, cam)
+        dev.c.SetNumberOfThreads(threads)
+        dev.c.SetBackendToOpenCL()
+        dev.frame(**matched)
+        if dev.c.GetOutput().GetPointData().GetArray("RGBAFloat") is None:
+            raise RuntimeError("the OpenCL backend failed (see the VTK error above); run with --backend cpu")
+    t_vtk, t_ours, t_noskip, t_dev = [], [], [], []
     for _ in range(frames):  # interleaved, so load from other processes hits both alike
         ms, img_vtk = vtk.frame()
         t_vtk.append(ms)
         ms, img_ours = ours.frame(**matched)
         t_ours.append(ms)
+        if dev is not None:
+            ms, img_dev = dev.frame(**matched)
+            t_dev.append(ms)
     samples = c.GetNumberOfSamples()
     # CPU time per frame with one thread each (VTK's mapper through its own thread count).
     vtk_threads = vtk.mapper.GetNumberOfThreads()
@@ -198,6 +213,16 @@ def bench_volume(path: str, size, frames: int, threads: int) -> tuple[list, dict
                      identical_without_skipping=float(np.abs(img_noskip - img_ours).max()) <= 1e-6,
                      **{k: bytes_info[k] for k in ("blocks_allocated", "blocks_dense", "bytes",
                                                    "visible_block_bytes", "dense_bytes", "build_ms")}))
+    if dev is not None:
+        ms_dev = statistics.median(t_dev)
+        rows.append(dict(base, renderer="matrixtree-opencl", ms=ms_dev, speedup=ms_vtk / ms_dev,
+                         storage=("float32", "uint8", "uint16")[dev.c.GetVoxelStorage()],
+                         ssim_vs_vtk=ssim(img_dev, img_vtk), psnr_vs_vtk=psnr(img_dev, img_vtk),
+                         psnr_vs_reference=psnr(img_dev, ref), samples=dev.c.GetNumberOfSamples(),
+                         max_diff_vs_cpu=float(np.abs(img_dev - img_ours).max()),
+                         device=dev.c.GetOpenCLDeviceName(), uploads=dev.c.GetNumberOfOpenCLUploads(),
+                         blocks_allocated=bytes_info["blocks_allocated"], blocks_dense=bytes_info["blocks_dense"],
+                         bytes=bytes_info["bytes"]))
     rows.append(dict(base, renderer="matrixtree-noskip", ms=statistics.median(t_noskip),
                      speedup=ms_vtk / statistics.median(t_noskip), ssim_vs_vtk=ssim(img_noskip, img_vtk),
                      psnr_vs_vtk=psnr(img_noskip, img_vtk), psnr_vs_reference=psnr(img_noskip, ref),
@@ -259,6 +284,8 @@ def write_docs(md_path: str, rows: list, pictures: list, args, cmd: str) -> None
     main = [r for r in rows if r["renderer"] != "matrixtree-curve"]
     cols = ["volume", "dims", "renderer", "ms", "speedup", "cpu_ms_1t", "cpu_speedup_1t", "ssim_vs_vtk",
             "psnr_vs_vtk", "psnr_vs_reference", "storage", "blocks_allocated", "blocks_dense", "bytes"]
+    if args.backend != "cpu":
+        cols.append("max_diff_vs_cpu")
     curve = [r for r in rows if r["renderer"] == "matrixtree-curve"]
     ccols = ["volume", "sample_distance_voxels", "ms", "psnr_vs_reference", "ssim_vs_vtk"]
     mem = [dict(volume=r["volume"], storage=r["storage"], blocks_allocated=r["blocks_allocated"],
@@ -309,6 +336,10 @@ def main() -> int:
     ap.add_argument("--size", nargs=2, type=int, default=[512, 512], metavar=("W", "H"))
     ap.add_argument("--frames", type=int, default=5, help="timed frames per renderer (default 5)")
     ap.add_argument("--threads", type=int, default=0, help="our OpenMP threads (0 = all)")
+    ap.add_argument("--backend", choices=("cpu", "opencl", "all"), default="cpu",
+                    help="cpu (default): our OpenMP marcher; opencl or all: also our OpenCL backend (row "
+                    "matrixtree-opencl, frames interleaved with the others, its image compared with our CPU "
+                    "image: max_diff_vs_cpu). The CPU rows stay in both: they are the device's reference")
     ap.add_argument("--json", default=os.path.join(ROOT, "out", "volume.json"))
     ap.add_argument("--md", default=None, help="write the markdown report (and docs/images/volume_*.png)")
     args = ap.parse_args()
@@ -317,12 +348,13 @@ def main() -> int:
     rows, pictures = [], []
     for p in paths:
         print(f"[volume] {os.path.basename(p)}", flush=True)
-        r, pic = bench_volume(p, tuple(args.size), args.frames, args.threads)
+        r, pic = bench_volume(p, tuple(args.size), args.frames, args.threads, args.backend)
         rows += r
         pictures.append(pic)
         print(table([x for x in r if x["renderer"] != "matrixtree-curve"],
                     ["volume", "renderer", "ms", "speedup", "cpu_ms_1t", "cpu_speedup_1t", "ssim_vs_vtk",
-                     "psnr_vs_reference", "storage", "bytes"]), flush=True)
+                     "psnr_vs_reference", "storage", "bytes"] + (["max_diff_vs_cpu"] if args.backend != "cpu" else [])),
+              flush=True)
     print()
     print(table(rows, ["volume", "renderer", "sample_distance", "ms", "speedup", "ssim_vs_vtk", "psnr_vs_reference",
                        "blocks_allocated", "blocks_dense", "bytes"]))
