@@ -135,6 +135,9 @@ class MatrixTree {
   /// `n` that contains bottom-level cell L (which must lie just across that face). The node of
   /// n's size across the face brackets the binary search. level < 0 if that face is the root's.
   NodeRef neighbourFind(const NodeRef& n, int axis, int dir, const int L[3], TraversalStats* st) const;
+  /// The leaf-finding answer for bottom-level cell L when its ancestor at level `hi` is known
+  /// absent: the empty child of L's deepest existing ancestor above `hi`.
+  NodeRef searchAbove(const int L[3], int hi, TraversalStats* st) const;
   /// Box of node c at level l, in world coordinates.
   Box nodeBox(int level, const int c[3]) const;
   /// Primitive range of an existing leaf.
@@ -256,11 +259,15 @@ inline NodeRef MatrixTree::neighbourFind(const NodeRef& n, int axis, int dir, co
   } else if (nodeExists(n.level, c)) {
     return locate(L, n.level, height_ + 1, st);
   }
-  // Absent: the answer is the empty child of the deepest existing ancestor of L above n.level.
+  return searchAbove(L, n.level, st);
+}
+
+inline NodeRef MatrixTree::searchAbove(const int L[3], int hi, TraversalStats* st) const {
+  // The answer is the empty child of the deepest existing ancestor of L above level hi.
   // Search up from the bracket with doubling steps (a gallop, then a binary search inside the
   // last step): the common case, a neighbour under the same parent, costs one access instead of
   // log2(level), and the worst case stays O(log h).
-  int hi = n.level, step = 1;
+  int step = 1;
   int lo = 0;
   int a[3];
   while (hi - step > 0) {
@@ -306,7 +313,39 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
     up[a] = d[a] > 0 ? 1 : 0;
   }
   const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
-  for (int step = 0; step < maxSteps; ++step) {
+  const Vec3 csH = cellSize_[H];
+  const int dimH[3] = {dim(H, 0), dim(H, 1), dim(H, 2)};
+  int step = 0;
+  for (; step < maxSteps; ++step) {
+    if (n.level == H) {
+      // A run of bottom-level cells (leaves and empty cells under an existing parent): L is the
+      // node, the next cell is one integer step along the exit axis, and the exit plane is the
+      // general loop's expression, so the walk is the same, with less bookkeeping per step.
+      for (; step < maxSteps; ++step) {
+        if (st) ++st->cells;
+        double tExit = t1;
+        int exitAxis = -1;
+        for (int a = 0; a < 3; ++a) {
+          if (!moves[a]) continue;
+          const double t = ((L[a] + up[a]) * csH[a] - ol[a]) * inv[a];
+          if (t < tExit) { tExit = t; exitAxis = a; }
+        }
+        tExit = std::max(tExit, tEnter);
+        if (n.exists && fn(prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit)) return;
+        if (exitAxis < 0) return;
+        L[exitAxis] += up[exitAxis] ? 1 : -1;
+        if (L[exitAxis] < 0 || L[exitAxis] >= dimH[exitAxis]) return;
+        tEnter = tExit;
+        if (st) ++st->nodeVisits;
+        if (leafAt(L, n.range)) {
+          n.exists = true;
+          continue;
+        }
+        n = searchAbove(L, H, st);
+        if (n.level != H) break;
+      }
+      continue;  // n is now a larger empty node containing L: the general step below
+    }
     if (st) ++st->cells;
     const Vec3 cs = cellSize_[n.level];
     double tExit = t1;

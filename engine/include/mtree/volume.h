@@ -93,7 +93,8 @@ struct VolumeBuildOptions {
   bool sparse = true;   // false: allocate every block (the dense reference, same code path)
   bool compact = true;  // 8/16-bit integer input: keep its width, bricks with an apron (UInt8/UInt16)
   /// Floating-point input whose values are all integers spanning at most 65535: store it as
-  /// UInt8/UInt16 too (lossless). Off by default: the OpenCL back end reads Float32 volumes only.
+  /// UInt8/UInt16 too (lossless; both back ends read those bricks). Off by default: float input
+  /// keeps the storage its type names.
   bool compactIntegralFloat = false;
   int threads = 0;      // 0 = OpenMP's default
 };
