@@ -17,6 +17,7 @@ struct Context::Impl {};
 struct Builder::State {};
 struct Tracer::State {};
 struct VolumeRenderer::State {};
+struct CellLocator::State {};
 
 bool compiledWithOpenCL() { return false; }
 std::vector<DeviceInfo> listDevices(std::string* why) {
@@ -53,6 +54,14 @@ void Tracer::intersectAny(const double*, const double*, size_t, double, double, 
 }
 void Tracer::findLeaves(const double*, size_t, int32_t*, std::vector<KernelTiming>*) { unavailable(); }
 Context& Tracer::context() const { unavailable(); }
+
+CellLocator::CellLocator(std::shared_ptr<Context>) { unavailable(); }
+CellLocator::~CellLocator() = default;
+void CellLocator::upload(const MatrixTree&, const CellSet&, const std::vector<uint8_t>&) { unavailable(); }
+bool CellLocator::uploaded() const { return false; }
+size_t CellLocator::deviceBytes() const { return 0; }
+void CellLocator::locate(const double*, size_t, double, uint32_t*, std::vector<KernelTiming>*) { unavailable(); }
+Context& CellLocator::context() const { unavailable(); }
 
 VolumeRenderer::VolumeRenderer(std::shared_ptr<Context>) { unavailable(); }
 VolumeRenderer::~VolumeRenderer() = default;

@@ -7,6 +7,8 @@
 //   tr.intersectFirst(orig, dirs, n, 0, inf, t, prim);  // the same hits as intersectFirst()
 //   mtree::ocl::VolumeRenderer vr(ctx); vr.upload(vol); // a BlockSparseVolume (volume.h)
 //   VolumeImage img = vr.render(geo, tf, cam, opt);     // the same image as renderVolume()
+//   mtree::ocl::CellLocator cl(ctx); cl.upload(tree, cells, leafBoxes);  // a CellSet's tree
+//   cl.locate(pts, n, 1e-3, out);                       // per point: no cell, found, or host resumes
 //
 // Every OpenCL call is checked: a failure throws mtree::ocl::Error naming the call, the error
 // code and the device (with the build log when a kernel fails to compile). Without an OpenCL SDK
@@ -20,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "mtree/cells.h"
 #include "mtree/matrix_tree.h"
 #include "mtree/primitives.h"
 #include "mtree/volume.h"
@@ -140,6 +143,56 @@ class Tracer {
                     std::vector<KernelTiming>* kernels = nullptr);
   /// n points: 5 ints each (level, i, j, k, exists) as MatrixTree::leafFind; level -1 outside.
   void findLeaves(const double* pts, size_t n, int32_t* out, std::vector<KernelTiming>* kernels = nullptr);
+
+  Context& context() const;
+
+ private:
+  struct State;
+  std::shared_ptr<Context> ctx_;
+  std::unique_ptr<State> st_;
+};
+
+/// Batched point location in the cells of a CellSet (opencl/query_cells.cl), over the matrix
+/// tree built on it, uploaded once. The device does what the CPU point-location loop does before
+/// it asks VTK: per point, leafFind, then the leaf's candidates in tree order, each first tested
+/// against its quantized leaf-local box (the same double arithmetic as the host, contraction
+/// off, hence the same rejections). Tetrahedra are then decided on the device: barycentric
+/// coordinates computed with an error bound, a cell rejected or accepted only when every
+/// coordinate is outside / inside [-tol, 1 + tol] by more than that bound. Anything else (other
+/// cell types, a tetrahedron too close to the tolerance to call, a degenerate one) stops the scan
+/// and hands the candidate's position to the host, which continues the CPU loop from there. So
+/// the host, finishing each point, returns exactly the cell the CPU loop returns.
+class CellLocator {
+ public:
+  /// Per point, locate() writes two uint32: the outcome and a position in the tree's primitive
+  /// index array (tree.primitiveIndices()).
+  enum Outcome : uint32_t {
+    kNoCell = 0,  // outside the tree, in an empty node, or every candidate rejected: no cell
+    kFound = 1,   // the tetrahedron at the position contains the point (within tol)
+    kResume = 2,  // the host continues the candidate scan at the position (leaf of leafFind)
+  };
+
+  explicit CellLocator(std::shared_ptr<Context> ctx = nullptr);  // nullptr: Context::shared()
+  ~CellLocator();
+  CellLocator(const CellLocator&) = delete;
+  CellLocator& operator=(const CellLocator&) = delete;
+
+  /// Copies the tree (levels, leaf ranges, primitive indices), the cells (points, offsets,
+  /// connectivity, types) and leafBoxes to the device. leafBoxes: 6 bytes per primitive index
+  /// (same order): the cell's box in its leaf's frame, lo/hi per axis in 1/255 of the leaf
+  /// (xlo xhi ylo yhi zlo zhi); a point p of leaf box lb is tested as
+  /// q[a] = min(255, max(0, (p[a] - lb.lo[a]) * (255 / (lb.hi[a] - lb.lo[a])))). Throws
+  /// std::invalid_argument when the sizes disagree. Call again after every rebuild.
+  void upload(const MatrixTree& tree, const CellSet& cells, const std::vector<uint8_t>& leafBoxes);
+  bool uploaded() const;
+  /// Bytes held on the device by the upload (not counting the per-call point buffers).
+  size_t deviceBytes() const;
+
+  /// n points (3 doubles each); tol: the tetrahedron's acceptance tolerance on barycentric
+  /// coordinates (VTK's vtkTetra::EvaluatePosition: 1e-3). out: 2 uint32 per point (Outcome,
+  /// position). kernels: device time per kernel, plus "(upload)" (the points) and "(download)"
+  /// (the answers).
+  void locate(const double* pts, size_t n, double tol, uint32_t* out, std::vector<KernelTiming>* kernels = nullptr);
 
   Context& context() const;
 

@@ -1,0 +1,134 @@
+// OpenCL host code, part 5: batched point location in a CellSet (opencl/query_cells.cl).
+#ifdef MATRIXTREE_HAVE_OPENCL
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "opencl_internal.h"
+
+namespace mtree {
+namespace ocl {
+
+struct CellLocator::State {
+  Buffer levels, ptrs, inner, leaves, prims, geom, boxes, pts, offsets, conn, types;
+  Buffer query, out;
+  int H = 0;
+  bool empty = true, uploaded = false;
+  size_t bytes = 0;
+};
+
+CellLocator::CellLocator(std::shared_ptr<Context> ctx) : ctx_(ctx ? std::move(ctx) : Context::shared()), st_(new State) {}
+CellLocator::~CellLocator() = default;
+Context& CellLocator::context() const { return *ctx_; }
+bool CellLocator::uploaded() const { return st_->uploaded; }
+size_t CellLocator::deviceBytes() const { return st_->uploaded ? st_->bytes : 0; }
+
+void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const std::vector<uint8_t>& leafBoxes) {
+  if (leafBoxes.size() != 6 * tree.primitiveIndices().size())
+    throw std::invalid_argument("OpenCL CellLocator: leafBoxes must hold 6 bytes per primitive index (" +
+                                std::to_string(6 * tree.primitiveIndices().size()) + "), got " +
+                                std::to_string(leafBoxes.size()));
+  Context::Impl& impl = ctx_->impl();
+  std::lock_guard<std::recursive_mutex> lock(impl.mutex);
+  State& S = *st_;
+  S.uploaded = false;
+  S.bytes = 0;
+  S.empty = tree.empty() || cells.size() == 0;
+  S.H = tree.height();
+  if (S.empty) {
+    S.uploaded = true;
+    return;
+  }
+  const int H = tree.height();
+  // The tree in the layout query.cl reads (the same flattening as Tracer::upload): level
+  // descriptors, every pointer matrix in one array, every inner level's bytes in another, and the
+  // geometry (root box, 1 / leaf size as the builder computes it, node size per level).
+  std::vector<MtLevelDesc> levels(H + 1);
+  std::vector<uint32_t> ptrs;
+  std::vector<uint8_t> inner;
+  for (int l = 0; l <= H; ++l) {
+    MtLevelDesc& d = levels[l];
+    d = MtLevelDesc{};
+    d.matrix = l == H ? tree.leafLevel().desc() : tree.innerLevel(l).desc();
+    const std::vector<uint32_t>& p = l == H ? tree.leafLevel().pointers() : tree.innerLevel(l).pointers();
+    if (ptrs.size() + p.size() >= MT_NULL || inner.size() >= MT_NULL)
+      throw std::length_error("OpenCL CellLocator: tree too large for 32-bit offsets");
+    d.matrix.ptrOffset = static_cast<uint32_t>(ptrs.size());
+    ptrs.insert(ptrs.end(), p.begin(), p.end());
+    if (l < H) {
+      d.matrix.dataOffset = static_cast<uint32_t>(inner.size());
+      inner.insert(inner.end(), tree.innerLevel(l).data().begin(), tree.innerLevel(l).data().end());
+    } else {
+      d.matrix.dataOffset = 0;
+    }
+    for (int a = 0; a < 3; ++a) d.logDims[a] = tree.logDim(l, a);
+  }
+  std::vector<double> geom(9 + 3 * (H + 1));
+  const Box& root = tree.rootBox();
+  for (int a = 0; a < 3; ++a) {
+    geom[a] = root.lo[a];
+    geom[3 + a] = root.hi[a];
+    geom[6 + a] = std::ldexp(1.0, tree.logDim(H, a)) / root.extent()[a];
+  }
+  for (int l = 0; l <= H; ++l)
+    for (int a = 0; a < 3; ++a) geom[9 + 3 * l + a] = tree.cellSize(l)[a];
+  // The cells as flat arrays (the CellSet keeps them private; rebuilt from its accessors).
+  const size_t nc = cells.size();
+  std::vector<uint32_t> offsets(nc + 1, 0), conn;
+  std::vector<uint8_t> types(nc);
+  for (size_t c = 0; c < nc; ++c) offsets[c + 1] = offsets[c] + static_cast<uint32_t>(cells.numCellPoints(c));
+  conn.resize(offsets[nc]);
+  for (size_t c = 0; c < nc; ++c) {
+    const uint32_t* ids = cells.cellPointIds(c);
+    std::copy(ids, ids + cells.numCellPoints(c), conn.begin() + offsets[c]);
+    types[c] = cells.type(c);
+  }
+  Launcher run(impl, nullptr);
+  auto put = [&](Buffer& b, const void* src, size_t bytes, const char* what) {
+    b.ensure(impl, bytes, what);
+    run.write(b, src, bytes, what);
+    S.bytes += bytes;
+  };
+  const std::vector<uint32_t>& prims = tree.primitiveIndices();
+  put(S.levels, levels.data(), levels.size() * sizeof(MtLevelDesc), "level descriptors");
+  put(S.ptrs, ptrs.data(), ptrs.size() * sizeof(uint32_t), "pointer matrices");
+  put(S.inner, inner.data(), inner.size(), "inner levels");
+  put(S.leaves, tree.leafLevel().data().data(), tree.leafLevel().data().size() * sizeof(MtLeafRange), "leaf ranges");
+  put(S.prims, prims.data(), prims.size() * sizeof(uint32_t), "cell indices");
+  put(S.geom, geom.data(), geom.size() * sizeof(double), "tree geometry");
+  put(S.boxes, leafBoxes.data(), leafBoxes.size(), "quantized leaf boxes");
+  put(S.pts, cells.points().data(), cells.points().size() * sizeof(double), "cell points");
+  put(S.offsets, offsets.data(), offsets.size() * sizeof(uint32_t), "cell offsets");
+  put(S.conn, conn.data(), conn.size() * sizeof(uint32_t), "cell connectivity");
+  put(S.types, types.data(), types.size(), "cell types");
+  run.finish();
+  S.uploaded = true;
+}
+
+void CellLocator::locate(const double* pts, size_t n, double tol, uint32_t* out, std::vector<KernelTiming>* kernels) {
+  State& S = *st_;
+  if (!S.uploaded) throw Error("OpenCL CellLocator: nothing uploaded; call upload(tree, cells, leafBoxes) first");
+  if (n == 0) return;
+  if (n >= MT_NULL / 2) throw std::length_error("OpenCL CellLocator: more than 2^31 points in one batch");
+  if (S.empty) {
+    std::fill(out, out + 2 * n, uint32_t{kNoCell});
+    return;
+  }
+  Context::Impl& impl = ctx_->impl();
+  std::lock_guard<std::recursive_mutex> lock(impl.mutex);
+  Launcher run(impl, kernels);
+  S.query.ensure(impl, 3 * n * sizeof(double), "query points");
+  S.out.ensure(impl, 2 * n * sizeof(uint32_t), "location answers");
+  run.write(S.query, pts, 3 * n * sizeof(double), "query points");
+  const cl_int H = S.H;
+  run.run("mt_locate_cells", n, 0, S.levels, S.ptrs, S.inner, S.leaves, S.geom, H, S.prims, S.boxes, S.pts, S.offsets,
+          S.conn, S.types, S.query, static_cast<uint32_t>(n), tol, S.out);
+  run.read(S.out, out, 2 * n * sizeof(uint32_t), "location answers");
+  run.finish();
+}
+
+}  // namespace ocl
+}  // namespace mtree
+
+#endif  // MATRIXTREE_HAVE_OPENCL
