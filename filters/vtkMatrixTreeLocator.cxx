@@ -20,6 +20,7 @@
 
 #include "mtree/builder.h"
 #include "mtree/cells.h"
+#include "mtree/opencl.h"
 
 #include <omp.h>
 
@@ -29,6 +30,7 @@
 #include <sstream>
 #include <string>
 #include <limits>
+#include <memory>
 #include <queue>
 #include <unordered_set>
 #include <vector>
@@ -47,6 +49,14 @@ struct vtkMatrixTreeLocatorInternals
   vtkDataSet* BuiltOn = nullptr; // the data set of the last build (compared, never dereferenced)
   std::string Phases; // "name ms; ..." of the last build, conversion and tree phases
   bool Valid = false;
+
+  // The OpenCL backend: the device locator for the selector, and whether it holds the current
+  // build (cleared by every build, so FindCells uploads again only after one).
+  std::unique_ptr<mtree::ocl::CellLocator> CL;
+  std::string CLSelector;
+  std::string CLDeviceName;
+  bool CLUploaded = false;
+  std::string FindPhases; // "name ms; ..." of the last OpenCL FindCells
 };
 
 vtkStandardNewMacro(vtkMatrixTreeLocator);
@@ -102,6 +112,50 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
 inline double LocatePad(const float* b)
 {
   return 1e-3 * std::max({ double(b[1]) - b[0], double(b[3]) - b[2], double(b[5]) - b[4] });
+}
+
+// vtkTetra::EvaluatePosition accepts barycentric coordinates within this of [0, 1].
+constexpr double kTetraTolerance = 1e-3;
+
+// The point-location loop over the candidates [k, end) of leaf n, the leaf that
+// MatrixTree::leafFind gives for x: FindCell runs it from the leaf's first candidate, the OpenCL
+// backend from the candidate where the device stopped.
+vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3],
+  const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights)
+{
+  const MtLeafRange r = in.Tree.leafRange(n);
+  const uint32_t* ids = in.Tree.primitiveIndices().data();
+  const uint8_t* boxes = in.LeafBoxes.data();
+  // The point in the leaf's quantized frame (the same arithmetic as the boxes': monotone, so
+  // a point inside the padded bounds is never rejected). Clamped into the leaf: round-off of
+  // the leaf search may put a point a hair outside it, where only clipped boxes reach.
+  const mtree::Box lb = in.Tree.nodeBox(n.level, n.c);
+  double q[3];
+  for (int a = 0; a < 3; ++a)
+  {
+    q[a] = std::min(255.0, std::max(0.0, (x[a] - lb.lo[a]) * (255.0 / (lb.hi[a] - lb.lo[a]))));
+  }
+  double closest[3], dist2;
+  int subId = 0;
+  for (; k < r.end; ++k)
+  {
+    const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+    if (q[0] < qb[0] || q[0] > qb[1] || q[1] < qb[2] || q[1] > qb[3] || q[2] < qb[4] || q[2] > qb[5])
+    {
+      continue;
+    }
+    const vtkIdType id = ids[k];
+    if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+    {
+      continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
+    }
+    ds->GetCell(id, cell);
+    if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
+    {
+      return id;
+    }
+  }
+  return -1;
 }
 
 void ComputeLeafBoxes(vtkMatrixTreeLocatorInternals& in, int threads)
@@ -171,7 +225,18 @@ vtkMatrixTreeLocator::vtkMatrixTreeLocator()
 
 vtkMatrixTreeLocator::~vtkMatrixTreeLocator()
 {
+  this->SetOpenCLDevice(nullptr);
   delete this->Internals;
+}
+
+const char* vtkMatrixTreeLocator::GetOpenCLDeviceName()
+{
+  return this->Internals->CLDeviceName.c_str();
+}
+
+const char* vtkMatrixTreeLocator::GetLastFindCellsPhases()
+{
+  return this->Internals->FindPhases.c_str();
 }
 
 //------------------------------------------------------------------------------
@@ -224,6 +289,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
 {
   vtkMatrixTreeLocatorInternals& in = *this->Internals;
   in.Valid = false;
+  in.CLUploaded = false;
   using Clock = std::chrono::steady_clock;
   const Clock::time_point tStart = Clock::now();
   auto msSince = [](Clock::time_point t) {
@@ -408,7 +474,6 @@ bool vtkMatrixTreeLocator::InsideCellBounds(double x[3], vtkIdType cellId)
 vtkIdType vtkMatrixTreeLocator::FindCell(
   double x[3], double vtkNotUsed(tol2), vtkGenericCell* cell, double pcoords[3], double* weights)
 {
-  int subId = 0;
   if (!this->EnsureBuilt())
   {
     return -1;
@@ -419,38 +484,7 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
   {
     return -1;
   }
-  const MtLeafRange r = in.Tree.leafRange(n);
-  const uint32_t* ids = in.Tree.primitiveIndices().data();
-  const uint8_t* boxes = in.LeafBoxes.data();
-  // The point in the leaf's quantized frame (the same arithmetic as the boxes': monotone, so
-  // a point inside the padded bounds is never rejected). Clamped into the leaf: round-off of
-  // the leaf search may put a point a hair outside it, where only clipped boxes reach.
-  const mtree::Box lb = in.Tree.nodeBox(n.level, n.c);
-  double q[3];
-  for (int a = 0; a < 3; ++a)
-  {
-    q[a] = std::min(255.0, std::max(0.0, (x[a] - lb.lo[a]) * (255.0 / (lb.hi[a] - lb.lo[a]))));
-  }
-  double closest[3], dist2;
-  for (uint32_t k = r.begin; k < r.end; ++k)
-  {
-    const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
-    if (q[0] < qb[0] || q[0] > qb[1] || q[1] < qb[2] || q[1] > qb[3] || q[2] < qb[4] || q[2] > qb[5])
-    {
-      continue;
-    }
-    const vtkIdType id = ids[k];
-    if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
-    {
-      continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
-    }
-    this->DataSet->GetCell(id, cell);
-    if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
-    {
-      return id;
-    }
-  }
-  return -1;
+  return ScanCandidates(this->DataSet, in, x, n, in.Tree.leafRange(n).begin, cell, pcoords, weights);
 }
 
 #if VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 2, 0)
@@ -1055,16 +1089,100 @@ void vtkMatrixTreeLocator::FindCells(
   }
   cellIds->SetNumberOfComponents(1);
   cellIds->SetNumberOfTuples(0);
+  if (pcoords)
+  {
+    pcoords->SetNumberOfComponents(3);
+    pcoords->SetNumberOfTuples(0);
+  }
+  if (weights)
+  {
+    weights->SetNumberOfTuples(0);
+  }
   if (!points || !CheckTriples(this, points->GetData(), "FindCells: points") || !this->EnsureBuilt())
   {
     return;
   }
+  vtkMatrixTreeLocatorInternals& in = *this->Internals;
   const vtkIdType n = points->GetNumberOfPoints();
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point tStart = Clock::now();
+  auto msSince = [](Clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  };
+
+  // OpenCL: the device answers first (outcome and candidate position per point, see
+  // mtree::ocl::CellLocator); the host loop below finishes each point from there.
+  std::vector<uint32_t> answers;
+  std::ostringstream phases;
+  if (this->Backend == OPENCL)
+  {
+    this->LastNumberOfHostResumes = 0;
+    this->LastNumberOfUnconfirmedCells = 0;
+    try
+    {
+      const std::string selector = this->OpenCLDevice ? this->OpenCLDevice : "";
+      if (!in.CL || selector != in.CLSelector)
+      {
+        in.CL.reset();
+        in.CLUploaded = false;
+        in.CLDeviceName.clear();
+        in.CL.reset(new mtree::ocl::CellLocator(mtree::ocl::Context::shared(selector)));
+        in.CLSelector = selector;
+        in.CLDeviceName = in.CL->context().device().name;
+      }
+      double uploadMs = 0;
+      if (!in.CLUploaded)
+      {
+        const Clock::time_point t0 = Clock::now();
+        in.CL->upload(in.Tree, in.Cells, in.LeafBoxes);
+        in.CLUploaded = true;
+        ++this->NumberOfOpenCLUploads;
+        uploadMs = msSince(t0);
+      }
+      // The kernel reads doubles: use the points' own array when it holds them.
+      std::vector<double> copy;
+      const double* xyz = nullptr;
+      vtkDoubleArray* dbl = vtkDoubleArray::FastDownCast(points->GetData());
+      if (dbl && n > 0)
+      {
+        xyz = dbl->GetPointer(0);
+      }
+      else
+      {
+        copy.resize(3 * static_cast<size_t>(n));
+        for (vtkIdType i = 0; i < n; ++i)
+        {
+          points->GetPoint(i, &copy[3 * static_cast<size_t>(i)]);
+        }
+        xyz = copy.data();
+      }
+      answers.resize(2 * static_cast<size_t>(n));
+      std::vector<mtree::ocl::KernelTiming> timing;
+      const Clock::time_point t1 = Clock::now();
+      in.CL->locate(xyz, static_cast<size_t>(n), kTetraTolerance, answers.data(), &timing);
+      const double deviceMs = msSince(t1);
+      double pointsMs = 0, kernelMs = 0, downloadMs = 0;
+      for (const auto& t : timing)
+      {
+        (t.kernel == "(upload)" ? pointsMs : (t.kernel == "(download)" ? downloadMs : kernelMs)) += t.ms;
+      }
+      phases << "upload " << uploadMs << "; points " << pointsMs << "; kernel " << kernelMs << "; download "
+             << downloadMs << "; device call " << deviceMs;
+    }
+    catch (const std::exception& e)
+    {
+      in.CLUploaded = false;
+      vtkErrorMacro("FindCells failed (opencl backend): " << e.what()
+                                                          << " (or locate with SetBackendToCPU())");
+      return;
+    }
+  }
+  const bool device = this->Backend == OPENCL;
+
   const int nw = std::max(1, this->DataSet->GetMaxCellSize());
   cellIds->SetNumberOfTuples(n);
   if (pcoords)
   {
-    pcoords->SetNumberOfComponents(3);
     pcoords->SetNumberOfTuples(n);
   }
   if (weights)
@@ -1076,18 +1194,58 @@ void vtkMatrixTreeLocator::FindCells(
   vtkIdType* ids = cellIds->GetPointer(0);
   double* pc = pcoords ? pcoords->GetPointer(0) : nullptr;
   double* w = weights ? weights->GetPointer(0) : nullptr;
-#pragma omp parallel num_threads(ThreadCount(this->NumberOfThreads))
+  const uint32_t* prims = in.Tree.primitiveIndices().data();
+  const bool wantParams = pc || w;
+  vtkIdType resumes = 0, unconfirmed = 0;
+  const Clock::time_point tHost = Clock::now();
+#pragma omp parallel num_threads(ThreadCount(this->NumberOfThreads)) reduction(+ : resumes, unconfirmed)
   {
     vtkNew<vtkGenericCell> cell;
     std::vector<double> wk(static_cast<size_t>(nw));
-    double x[3], p[3];
+    double x[3], p[3], closest[3], dist2;
+    int subId = 0;
 #pragma omp for schedule(dynamic, 1024)
     for (vtkIdType i = 0; i < n; ++i)
     {
       points->GetPoint(i, x);
       std::fill(wk.begin(), wk.end(), 0.0);
       p[0] = p[1] = p[2] = 0.0;
-      ids[i] = this->FindCell(x, 0.0, cell, p, wk.data());
+      if (!device)
+      {
+        ids[i] = this->FindCell(x, 0.0, cell, p, wk.data());
+      }
+      else
+      {
+        const uint32_t outcome = answers[2 * static_cast<size_t>(i)];
+        uint32_t k = answers[2 * static_cast<size_t>(i) + 1];
+        ids[i] = -1;
+        bool resume = outcome == mtree::ocl::CellLocator::kResume;
+        if (outcome == mtree::ocl::CellLocator::kFound)
+        {
+          ids[i] = prims[k];
+          if (wantParams)
+          {
+            // pcoords and weights from VTK, which also confirms the device's answer.
+            this->DataSet->GetCell(ids[i], cell);
+            if (cell->EvaluatePosition(x, closest, subId, p, dist2, wk.data()) != 1)
+            {
+              ++unconfirmed;
+              resume = true;
+            }
+          }
+        }
+        if (resume)
+        {
+          ++resumes;
+          const mtree::NodeRef leaf = in.Tree.leafFind(mtree::Vec3(x));
+          ids[i] = leaf.exists ? ScanCandidates(this->DataSet, in, x, leaf, k, cell, p, wk.data()) : -1;
+        }
+      }
+      if (ids[i] < 0)
+      {
+        // A miss leaves what the last rejected candidate wrote: not meaningful, zeroed.
+        p[0] = p[1] = p[2] = 0.0;
+      }
       if (pc)
       {
         std::copy(p, p + 3, pc + 3 * i);
@@ -1106,6 +1264,13 @@ void vtkMatrixTreeLocator::FindCells(
         std::copy(wk.begin(), wk.end(), w + static_cast<size_t>(nw) * i);
       }
     }
+  }
+  if (device)
+  {
+    this->LastNumberOfHostResumes = resumes;
+    this->LastNumberOfUnconfirmedCells = unconfirmed;
+    phases << "; host " << msSince(tHost) << "; total " << msSince(tStart);
+    in.FindPhases = phases.str();
   }
 }
 
@@ -1279,6 +1444,8 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetMaxCandidates(other->MaxCandidates);
   this->SetNumberOfThreads(other->NumberOfThreads);
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
+  this->SetBackend(other->Backend);
+  this->SetOpenCLDevice(other->OpenCLDevice);
 }
 
 //------------------------------------------------------------------------------
@@ -1293,6 +1460,13 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LeafScale: " << this->LeafScale << "\n";
   os << indent << "MaxCandidates: " << this->MaxCandidates << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
+  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
+  os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
+  os << indent << "OpenCLDeviceName: " << this->Internals->CLDeviceName << "\n";
+  os << indent << "NumberOfOpenCLUploads: " << this->NumberOfOpenCLUploads << "\n";
+  os << indent << "LastNumberOfHostResumes: " << this->LastNumberOfHostResumes << "\n";
+  os << indent << "LastNumberOfUnconfirmedCells: " << this->LastNumberOfUnconfirmedCells << "\n";
+  os << indent << "LastFindCellsPhases: " << this->Internals->FindPhases << "\n";
   os << indent << "Built: " << (this->Internals->Valid ? "yes" : "no") << "\n";
   if (this->Internals->Valid)
   {

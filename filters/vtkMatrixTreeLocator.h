@@ -20,11 +20,27 @@
  * (build on the first query); NumberOfCellsPerNode, MaxLevel, Automatic, Level, Tolerance and
  * CacheCellBounds are ignored: the height rule replaces them, and cell bounds are always kept.
  *
+ * Backend: CPU (default) or OPENCL, for the batched point location FindCells only. With OPENCL
+ * the tree is still built on the CPU; the first FindCells after a build copies the tree, the
+ * cells and the quantized leaf boxes to the OpenCL device OpenCLDevice selects (kept until the
+ * next build or a device change; GetNumberOfOpenCLUploads counts the copies), and a kernel
+ * (opencl/query_cells.cl) does per point what the CPU loop does before it calls VTK: leaf find,
+ * the leaf's candidates in the CPU's order with the same quantized-box rejections, and for
+ * tetrahedra the containment test when its answer is certain. Every other candidate (other
+ * cell types, a tetrahedron within ~1e-12 of VTK's 1e-3 tolerance) is left to the host, which
+ * goes on with the CPU loop from that candidate; pcoords and weights of found cells come from
+ * VTK's EvaluatePosition on the host. The cell ids are therefore exactly the CPU backend's, and
+ * pcoords and weights equal. The one-point FindCell overloads, and every other query, always
+ * run on the CPU. OPENCL without an OpenCL device, with a selector that matches none, or in a
+ * build without OpenCL makes FindCells report a VTK error naming the backend and leave empty
+ * outputs (no fallback to the CPU).
+ *
  * Thread safety: after the locator is built, FindCell(x, tol2, cell, pcoords, weights), the
  * IntersectWithLine overloads that take a vtkGenericCell, FindClosestPoint with a vtkGenericCell,
  * FindCellsWithinBounds and FindCellsAlongLine may be called concurrently (they only read the
  * tree). Overloads without a vtkGenericCell use an internal cell and are not thread-safe, as in
- * VTK's own locators. Building is not thread-safe.
+ * VTK's own locators. Building is not thread-safe, nor is FindCells with Backend OPENCL (it may
+ * upload).
  *
  * @sa
  * vtkStaticCellLocator vtkCellLocator vtkCellTreeLocator vtkModifiedBSPTree vtkMatrixTree
@@ -126,6 +142,53 @@ public:
   vtkGetMacro(NumberOfThreads, int);
   ///@}
 
+  enum Backends
+  {
+    CPU = 0,
+    OPENCL = 1
+  };
+
+  ///@{
+  /**
+   * Where FindCells locates the points: CPU (default, OpenMP) or OPENCL (see the class
+   * description). Changing it does not rebuild the tree.
+   */
+  vtkSetClampMacro(Backend, int, CPU, OPENCL);
+  vtkGetMacro(Backend, int);
+  void SetBackendToCPU() { this->SetBackend(CPU); }
+  void SetBackendToOpenCL() { this->SetBackend(OPENCL); }
+  const char* GetBackendAsString() const { return this->Backend == OPENCL ? "opencl" : "cpu"; }
+  ///@}
+
+  ///@{
+  /**
+   * OpenCL device selector (default empty: $MATRIXTREE_OPENCL_DEVICE, else the first GPU, else
+   * the first device; "P:D" = device D of platform P; "N" = the N-th device; other text = the
+   * first device whose name contains it). Used only with Backend OPENCL.
+   */
+  vtkSetStringMacro(OpenCLDevice);
+  vtkGetStringMacro(OpenCLDevice);
+  ///@}
+
+  /** Name of the OpenCL device of the last OpenCL FindCells ("" if none). */
+  const char* GetOpenCLDeviceName();
+  /** Times the tree and cells were copied to an OpenCL device (once per build and device). */
+  vtkGetMacro(NumberOfOpenCLUploads, vtkIdType);
+
+  ///@{
+  /**
+   * Of the last FindCells with Backend OPENCL: the points the host finished from where the
+   * device stopped (non-tetrahedral candidates, uncertain tetrahedra), and the points where the
+   * device's "found" was not confirmed by VTK's EvaluatePosition (checked when pcoords or
+   * weights are asked for; then the host rescans from that candidate, so answers stay the CPU's;
+   * expected 0). Milliseconds per phase ("upload ...; points ...; kernel ...; download ...;
+   * host ...; total ..."; upload is 0 when the device copy was reused).
+   */
+  vtkGetMacro(LastNumberOfHostResumes, vtkIdType);
+  vtkGetMacro(LastNumberOfUnconfirmedCells, vtkIdType);
+  const char* GetLastFindCellsPhases();
+  ///@}
+
   // ---- vtkLocator ----
   /** Builds the tree if the data set or a setting changed since the last build. */
   void BuildLocator() override;
@@ -197,7 +260,9 @@ public:
    * vtkErrorMacro and leaves the outputs empty.
    *
    * FindCells: per point, FindCell(x, 0, cell, pcoords, weights): cellIds gets the cell or -1;
-   * pcoords 3 components; weights GetMaxCellSize() components (unused ones 0).
+   * pcoords 3 components; weights GetMaxCellSize() components (unused ones 0); for a point in no
+   * cell pcoords and weights are 0. With Backend OPENCL the points are located on the device
+   * (same answers; see the class description); a device failure is a VTK error and empty outputs.
    */
   void FindCells(vtkPoints* points, vtkIdTypeArray* cellIds, vtkDoubleArray* pcoords = nullptr,
     vtkDoubleArray* weights = nullptr);
@@ -232,7 +297,7 @@ public:
   const char* GetBuildPhases();
   ///@}
 
-  /** Copies the settings (not the tree) of another vtkMatrixTreeLocator. */
+  /** Copies the settings (not the tree), Backend and OpenCLDevice included, of another locator. */
   void CopySettings(vtkMatrixTreeLocator* other);
 
 protected:
@@ -250,6 +315,11 @@ protected:
   double LeafScale = 1.0;
   double MaxCandidates = 16.0;
   int NumberOfThreads = 0;
+  int Backend = CPU;
+  char* OpenCLDevice = nullptr;
+  vtkIdType NumberOfOpenCLUploads = 0;
+  vtkIdType LastNumberOfHostResumes = 0;
+  vtkIdType LastNumberOfUnconfirmedCells = 0;
   vtkMatrixTreeLocatorInternals* Internals;
 
 private:
