@@ -2,14 +2,16 @@
 
 A numpy front end to ``vtkMatrixTreeLocator``: one call answers a whole array of points or
 segments, OpenMP-parallel in C++ (never a Python loop per point). Answers equal the locator's
-one-point calls, which match VTK's own locators.
+one-point calls, which match VTK's own locators. ``backend="opencl"`` moves point location
+(``locate``) onto an OpenCL device, with the same answers.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray, vtkPoints
+from vtkmodules.util.misc import calldata_type
+from vtkmodules.vtkCommonCore import VTK_STRING, vtkDoubleArray, vtkIdTypeArray, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkDataSet
 
 from matrixtree_vtk import vtkMatrixTreeLocator
@@ -17,6 +19,7 @@ from matrixtree_vtk import vtkMatrixTreeLocator
 __all__ = ["CellLocator"]
 
 _TREES = {"octree": 0, "kdtree": 1}
+_BACKENDS = ("cpu", "opencl")
 
 
 def _points3(a, name: str) -> np.ndarray:
@@ -48,6 +51,17 @@ class CellLocator:
         Levels below the root; 0 chooses it from the cell sizes.
     threads : int, default: 0
         OpenMP threads for the build and the batched queries; 0 uses all.
+    backend : {"cpu", "opencl"}, default: "cpu"
+        Where :meth:`locate` finds the points' cells. ``"opencl"``: a kernel on an OpenCL device
+        does the leaf search and the candidate scan (deciding tetrahedra itself), the host
+        finishes what the kernel leaves to VTK; the tree is built on the CPU and copied to the
+        device once per build. Cell ids are identical to ``"cpu"``, pcoords and weights equal.
+        Without an OpenCL device ``locate`` raises RuntimeError (no silent fallback).
+        ``trace`` and ``closest_points`` always run on the CPU.
+    device : str, optional
+        OpenCL device selector (``backend="opencl"`` only): ``"P:D"`` (platform P, device D), a
+        device number, or part of a device name; default: ``$MATRIXTREE_OPENCL_DEVICE``, else the
+        first GPU, else the first device.
 
     See Also
     --------
@@ -66,11 +80,14 @@ class CellLocator:
     (True, -1)
     """
 
-    def __init__(self, dataset: vtkDataSet, tree: str = "octree", height: int = 0, threads: int = 0):
+    def __init__(self, dataset: vtkDataSet, tree: str = "octree", height: int = 0, threads: int = 0,
+                 backend: str = "cpu", device: str | None = None):
         if not isinstance(dataset, vtkDataSet):
             raise TypeError(f"dataset must be a vtkDataSet (or a pyvista mesh), got {type(dataset).__name__}")
         if tree not in _TREES:
             raise ValueError(f"tree must be one of {sorted(_TREES)}, got {tree!r}")
+        if backend not in _BACKENDS:
+            raise ValueError(f"backend must be 'cpu' or 'opencl', got {backend!r}")
         if dataset.GetNumberOfCells() == 0:
             raise ValueError("dataset has no cells")
         self.dataset = dataset
@@ -78,6 +95,11 @@ class CellLocator:
         self.vtk_locator.SetTreeType(_TREES[tree])
         self.vtk_locator.SetHeight(int(height))
         self.vtk_locator.SetNumberOfThreads(int(threads))
+        if backend == "opencl":
+            self.vtk_locator.SetBackendToOpenCL()
+            if device is not None:
+                self.vtk_locator.SetOpenCLDevice(str(device))
+        self.backend = backend
         self.vtk_locator.SetDataSet(dataset)
         self.vtk_locator.BuildLocator()
 
@@ -99,6 +121,12 @@ class CellLocator:
         numpy.ndarray or tuple of numpy.ndarray
             Cell ids (int64), followed by the optional arrays.
 
+        Raises
+        ------
+        RuntimeError
+            ``backend="opencl"`` with no OpenCL device (or none matching ``device``), or a build
+            without OpenCL; the message says why.
+
         Examples
         --------
         >>> from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
@@ -113,7 +141,24 @@ class CellLocator:
         ids = vtkIdTypeArray()
         pc = vtkDoubleArray() if return_pcoords else None
         w = vtkDoubleArray() if return_weights else None
-        self.vtk_locator.FindCells(_vtk_points(p), ids, pc, w)
+        errors: list[str] = []
+
+        @calldata_type(VTK_STRING)
+        def _on_error(_obj, _event, message):  # the locator's vtkErrorMacro text, for the exception
+            lines = [ln.strip() for ln in str(message).strip().splitlines()]
+            if lines and lines[0].startswith("ERROR: In "):  # "ERROR: In file, line N"
+                lines = lines[1:]
+            text = " ".join(ln for ln in lines if ln)
+            errors.append(text.split("): ", 1)[1] if text.startswith("vtk") and "): " in text else text)
+
+        tag = self.vtk_locator.AddObserver("ErrorEvent", _on_error)
+        try:
+            self.vtk_locator.FindCells(_vtk_points(p), ids, pc, w)
+        finally:
+            self.vtk_locator.RemoveObserver(tag)
+        if errors:
+            hint = " [CellLocator: backend='cpu' needs no OpenCL]" if self.backend == "opencl" else ""
+            raise RuntimeError(errors[-1] + hint)
         out = [vtk_to_numpy(ids).astype(np.int64, copy=True)]
         if return_pcoords:
             out.append(vtk_to_numpy(pc).reshape(-1, 3).copy())
@@ -203,4 +248,5 @@ class CellLocator:
     def __repr__(self) -> str:
         tree = "kdtree" if self.vtk_locator.GetTreeType() == 1 else "octree"
         return (f"CellLocator({self.dataset.GetClassName()}, {self.dataset.GetNumberOfCells()} cells, {tree}, "
-                f"height {self.vtk_locator.GetTreeHeight()}, {self.vtk_locator.GetMemorySize()} bytes)")
+                f"height {self.vtk_locator.GetTreeHeight()}, {self.vtk_locator.GetMemorySize()} bytes, "
+                f"backend {self.backend})")

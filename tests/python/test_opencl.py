@@ -142,3 +142,78 @@ def test_render_volume_opencl_equals_cpu_on_float_input():
         assert sa["storage"] == "float32"
         assert a[..., 3].mean() > 0.02
         assert np.abs(a - b).max() <= 1e-5
+
+
+# ----------------------------------------------------------------------------- cell location
+PIPE = os.path.join(scenes.data_dir(), "cfd", "pipe_flow_tets.vtu")
+
+
+@pytest.fixture(scope="module")
+def pipe():
+    return matrixtree.read_grid(PIPE)
+
+
+def _points_in_and_around(ds, n, seed, grow=0.05):
+    b = np.array(ds.GetBounds()).reshape(3, 2)
+    ext = b[:, 1] - b[:, 0]
+    return b[:, 0] - grow * ext + np.random.default_rng(seed).random((n, 3)) * ext * (1 + 2 * grow)
+
+
+def test_cell_locator_bad_backend_name_is_a_value_error(pipe):
+    with pytest.raises(ValueError, match="backend must be 'cpu' or 'opencl'"):
+        matrixtree.CellLocator(pipe, backend="cuda")
+
+
+@needs_device
+@pytest.mark.parametrize("tree", ["octree", "kdtree"])
+def test_cell_locator_opencl_locate_equals_cpu(pipe, tree):
+    p = _points_in_and_around(pipe, 100000, seed=11)
+    # Points on shared faces and at vertices: several cells contain them; the first in the
+    # leaf's order must win on both backends.
+    conn = pipe.GetCells().GetConnectivityArray()
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    tets = vtk_to_numpy(conn).reshape(-1, 4)
+    xyz = vtk_to_numpy(pipe.GetPoints().GetData())
+    pick = np.random.default_rng(12).integers(0, len(tets), 3000)
+    faces = xyz[tets[pick, :3]].mean(axis=1)
+    p = np.vstack([p, faces, xyz[tets[pick[:1000], 3]]])
+    cpu = matrixtree.CellLocator(pipe, tree=tree)
+    gpu = matrixtree.CellLocator(pipe, tree=tree, backend="opencl")
+    ic, pc, wc = cpu.locate(p, return_pcoords=True, return_weights=True)
+    ig, pg, wg = gpu.locate(p, return_pcoords=True, return_weights=True)
+    assert (ic >= 0).sum() > 40000
+    np.testing.assert_array_equal(ic, ig)
+    assert np.abs(pc - pg).max() <= 1e-12 and np.abs(wc - wg).max() <= 1e-12
+    np.testing.assert_array_equal(gpu.locate(p), ic)  # ids only, the device copy reused
+    vl = gpu.vtk_locator
+    assert vl.GetNumberOfOpenCLUploads() == 1 and vl.GetLastNumberOfUnconfirmedCells() == 0
+    assert vl.GetOpenCLDeviceName() and "kernel" in vl.GetLastFindCellsPhases()
+    assert "backend opencl" in repr(gpu)
+
+
+def test_cell_locator_opencl_with_no_matching_device_raises(pipe):
+    loc = matrixtree.CellLocator(pipe, backend="opencl", device="no-such-opencl-device-xyz")
+    with pytest.raises(RuntimeError, match="opencl backend.*backend='cpu'"):
+        loc.locate([[0.0, 0.0, 0.0]])
+
+
+def test_cell_locator_opencl_without_any_platform_raises():
+    # OCL_ICD_VENDORS pointing at an empty folder: the ICD loader finds no platform at all.
+    import subprocess
+    import sys
+    import tempfile
+
+    code = ("import matrixtree\n"
+            f"g = matrixtree.read_grid({PIPE!r})\n"
+            "loc = matrixtree.CellLocator(g, backend='opencl')\n"
+            "try:\n"
+            "    loc.locate([[0.0, 0.0, 0.0]])\n"
+            "except RuntimeError as e:\n"
+            "    print('RuntimeError:', e)\n"
+            "print('cpu:', matrixtree.CellLocator(g).locate([[0.0, 0.0, 0.0]]).shape)\n")
+    with tempfile.TemporaryDirectory() as empty:
+        env = dict(os.environ, OCL_ICD_VENDORS=empty)
+        r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "RuntimeError:" in r.stdout and "opencl backend" in r.stdout, r.stdout + r.stderr[-2000:]
+    assert "cpu: (1,)" in r.stdout
