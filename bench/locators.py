@@ -5,7 +5,7 @@ segments, one process per grid (the C++ driver build/bin/locators_bench; a Pytho
 point would measure Python, not the locators).
 
     .venv/bin/python bench/locators.py [--grid FILE] [--points N] [--rays N] [--json OUT] [--markdown MD]
-                                       [--build-dir DIR]
+                                       [--build-dir DIR] [--backend cpu|opencl|all]
 
 With no --grid it runs every CFD grid in ../shared/data/cfd and every mesh in
 ../shared/data/meshes. JSON rows: grid, cells, locator, build_ms (median of 3), bytes (ours:
@@ -13,7 +13,12 @@ GetMemorySize, everything the locator holds; vtkStaticCellLocator: estimated fro
 VTK 9.1 reports none; the other VTK locators: -1), findcell_pts_per_s_1thread, findcell_pts_per_s_all,
 rays_per_s (segments of a quarter of the diagonal from random points, first hit), disagreements
 (FindCell answers that differ from vtkCellLocator's and do not contain the point, or found/not
-found differs).
+found differs). Matrix-tree rows also carry batch_pts_per_s (the batched FindCells, ids only,
+all threads). --backend opencl|all adds the row matrix-octree-opencl (vtkMatrixTreeLocator with
+Backend OPENCL; "opencl" drops the CPU matrix rows): its findcell_pts_per_s_* are the batched
+FindCells with 1 and all host threads, with device, first_call_ms (upload and, with a cold
+PoCL cache, the kernel compile) and its first_call_phases, phases (upload/points/kernel/download/host ms of the last call)
+and differs_from_cpu (ids that differ from matrix-octree's, expected 0).
 """
 
 from __future__ import annotations
@@ -62,6 +67,8 @@ def main() -> int:
     p.add_argument("--threads", type=int, default=os.cpu_count())
     p.add_argument("--json", default="out/bench_locators.json")
     p.add_argument("--markdown", default=None)
+    p.add_argument("--backend", choices=("cpu", "opencl", "all"), default="cpu",
+                   help="matrix-tree FindCells backend rows (default: cpu)")
     p.add_argument("--build-dir", default=None, help="build tree holding bin/locators_bench (default: "
                    "$MATRIXTREE_BUILD_DIR or build/)")
     a = p.parse_args()
@@ -80,8 +87,8 @@ def main() -> int:
             it = paths
         for path in it:
             f = as_vtk_file(path, tmp)
-            out = subprocess.run([exe, f, str(a.points), str(a.rays), str(a.threads)], capture_output=True,
-                                 text=True, check=True).stdout
+            out = subprocess.run([exe, f, str(a.points), str(a.rays), str(a.threads), "0", "", a.backend],
+                                 capture_output=True, text=True, check=True).stdout
             for line in out.splitlines():
                 r = json.loads(line)
                 r["grid"] = os.path.basename(path)
@@ -94,8 +101,9 @@ def main() -> int:
         r["build_ratio_vs_static"] = r["build_ms"] / s["build_ms"]
         r["bytes_ratio_vs_static"] = r["bytes"] / s["bytes"] if r["bytes"] > 0 and s["bytes"] > 0 else -1
         r["machine"] = machine()
-    cols = ["grid", "cells", "locator", "build_ms", "bytes", "findcell_pts_per_s_1thread", "findcell_pts_per_s_all",
-            "rays_per_s", "disagreements", "findcell_speedup_vs_static", "rays_speedup_vs_static",
+    cols = ["grid", "cells", "locator", "backend", "device", "build_ms", "bytes", "findcell_pts_per_s_1thread",
+            "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "disagreements", "differs_from_cpu",
+            "findcell_speedup_vs_static", "rays_speedup_vs_static",
             "build_ratio_vs_static", "bytes_ratio_vs_static"]
     print(table(rows, cols))
     write_outputs(a.json, rows, a.markdown, rows, cols)

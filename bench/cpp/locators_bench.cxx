@@ -1,19 +1,29 @@
 // Locator benchmark driver: every locator on one grid, the same seeded points and segments, in
 // one process. Prints one JSON object per locator on stdout (bench/locators.py collects them).
 //
-//   locators_bench GRID.vtu|.vtp NUM_POINTS NUM_RAYS THREADS [HEIGHT [ONLY,NAMES]]
+//   locators_bench GRID.vtu|.vtp NUM_POINTS NUM_RAYS THREADS [HEIGHT [ONLY,NAMES [BACKEND]]]
 //
 // FindCell runs single-threaded and on THREADS OpenMP threads (one vtkGenericCell per thread:
 // FindCell with a generic cell is thread-safe in every locator measured). IntersectWithLine is
 // timed single-threaded. Disagreements are counted against vtkCellLocator, VTK's reference.
+//
+// The matrix-tree rows also time the batched FindCells (ids only; best of 3 after one warm-up
+// call): batch_pts_per_s. BACKEND cpu (default) | opencl | all: opencl adds the row
+// "matrix-octree-opencl" (Backend OPENCL; "opencl" alone drops the CPU matrix rows), whose
+// findcell_pts_per_s_* are the batched FindCells with 1 and THREADS host threads (the
+// one-point FindCell stays on the CPU), with first_call_ms (upload, and kernel compile when
+// PoCL's cache is cold) and its phases, the phases of the last call, and differs_from_cpu (ids that differ from
+// matrix-octree's batch, expected 0; -1 without that row).
 #include "vtkMatrixTreeLocator.h"
 
 #include "vtkCellLocator.h"
 #include "vtkCellTreeLocator.h"
 #include "vtkDataSet.h"
 #include "vtkGenericCell.h"
+#include "vtkIdTypeArray.h"
 #include "vtkModifiedBSPTree.h"
 #include "vtkNew.h"
+#include "vtkPoints.h"
 #include "vtkPolyData.h"
 #include "vtkUnstructuredGrid.h"
 #include "vtkSmartPointer.h"
@@ -62,6 +72,12 @@ int main(int argc, char* argv[])
   // Optional comma-separated list of locator names to run (for profiling one of them);
   // without vtkCellLocator in the list, disagreements are not counted (-1).
   const std::string only = argc > 6 ? argv[6] : "";
+  const std::string backend = argc > 7 ? argv[7] : "cpu";
+  if (backend != "cpu" && backend != "opencl" && backend != "all")
+  {
+    std::fprintf(stderr, "BACKEND must be cpu, opencl or all, got '%s'\n", backend.c_str());
+    return 2;
+  }
   vtkSmartPointer<vtkDataSet> ds;
   if (path.size() > 4 && path.substr(path.size() - 4) == ".vtp")
   {
@@ -111,16 +127,24 @@ int main(int argc, char* argv[])
     vtkSmartPointer<vtkAbstractCellLocator> loc;
   };
   std::vector<Entry> locs;
-  auto addMatrix = [&](const char* name, int type, bool exact) {
+  auto addMatrix = [&](const char* name, int type, bool exact, bool opencl = false) {
     auto l = vtkSmartPointer<vtkMatrixTreeLocator>::New();
     l->SetTreeType(type);
     l->SetExactOverlap(exact);
     l->SetHeight(height);
+    l->SetBackend(opencl ? vtkMatrixTreeLocator::OPENCL : vtkMatrixTreeLocator::CPU);
     locs.push_back({ name, l });
   };
-  addMatrix("matrix-octree", 0, true);
-  addMatrix("matrix-kdtree", 1, true);
-  addMatrix("matrix-octree-bbox", 0, false);
+  if (backend != "opencl")
+  {
+    addMatrix("matrix-octree", 0, true);
+    addMatrix("matrix-kdtree", 1, true);
+    addMatrix("matrix-octree-bbox", 0, false);
+  }
+  if (backend != "cpu")
+  {
+    addMatrix("matrix-octree-opencl", 0, true, true);
+  }
   locs.push_back({ "vtkStaticCellLocator", vtkSmartPointer<vtkStaticCellLocator>::New() });
   locs.push_back({ "vtkCellLocator", vtkSmartPointer<vtkCellLocator>::New() });
   locs.push_back({ "vtkCellTreeLocator", vtkSmartPointer<vtkCellTreeLocator>::New() });
@@ -140,7 +164,15 @@ int main(int argc, char* argv[])
     double buildMs, pps1, ppsAll, raysPerS;
     long long bytes;
     std::vector<vtkIdType> found;
+    double batchPps = -1, firstCallMs = -1;
+    std::string device, phases, firstPhases;
+    bool opencl = false, failed = false;
   };
+  vtkNew<vtkPoints> batchPoints;
+  batchPoints->SetDataTypeToDouble();
+  batchPoints->SetNumberOfPoints(nPts);
+  for (int i = 0; i < nPts; ++i)
+    batchPoints->SetPoint(i, &pts[3 * i]);
   std::vector<Result> results;
   for (Entry& e : locs)
   {
@@ -196,6 +228,36 @@ int main(int argc, char* argv[])
         idBytes * (static_cast<long long>(div[0]) * div[1] * div[2] + 1);
     }
     res.found.resize(static_cast<size_t>(nPts));
+    auto* mloc = vtkMatrixTreeLocator::SafeDownCast(loc);
+    res.opencl = mloc && mloc->GetBackend() == vtkMatrixTreeLocator::OPENCL;
+    // Batched FindCells (ids only) with nt host threads: one warm-up call, then best of 3.
+    auto runBatch = [&](int nt) {
+      mloc->SetNumberOfThreads(nt);
+      vtkNew<vtkIdTypeArray> ids;
+      double t0 = Now();
+      mloc->FindCells(batchPoints, ids);
+      const double first = (Now() - t0) * 1e3;
+      if (res.firstCallMs < 0)
+      {
+        res.firstCallMs = first;
+        res.firstPhases = mloc->GetLastFindCellsPhases();
+      }
+      double best = 1e300;
+      for (int r = 0; r < 3; ++r)
+      {
+        t0 = Now();
+        mloc->FindCells(batchPoints, ids);
+        best = std::min(best, Now() - t0);
+      }
+      if (ids->GetNumberOfTuples() != nPts)
+      {
+        res.failed = true;
+        return 0.0;
+      }
+      for (int i = 0; i < nPts; ++i)
+        res.found[i] = ids->GetValue(i);
+      return nPts / best;
+    };
     auto runFind = [&](int nt) {
       const double t0 = Now();
 #pragma omp parallel num_threads(nt)
@@ -208,8 +270,21 @@ int main(int argc, char* argv[])
       }
       return nPts / (Now() - t0);
     };
-    res.pps1 = runFind(1);
-    res.ppsAll = runFind(threads);
+    if (res.opencl)
+    {
+      res.pps1 = runBatch(1);
+      res.ppsAll = runBatch(threads);
+      res.batchPps = res.ppsAll;
+      res.device = mloc->GetOpenCLDeviceName();
+      res.phases = mloc->GetLastFindCellsPhases();
+    }
+    else
+    {
+      if (mloc)
+        res.batchPps = runBatch(threads);
+      res.pps1 = runFind(1);
+      res.ppsAll = runFind(threads);
+    }
     vtkNew<vtkGenericCell> gc;
     double t, x[3], pc[3];
     int sub;
@@ -226,6 +301,9 @@ int main(int argc, char* argv[])
   while (refIndex < locs.size() && std::string(locs[refIndex].name) != "vtkCellLocator")
     ++refIndex;
   const bool haveRef = refIndex < locs.size();
+  size_t cpuIndex = 0;
+  while (cpuIndex < locs.size() && std::string(locs[cpuIndex].name) != "matrix-octree")
+    ++cpuIndex;
   for (size_t li = 0; li < locs.size(); ++li)
   {
     const Result& r = results[li];
@@ -240,11 +318,22 @@ int main(int argc, char* argv[])
         (r.found[i] >= 0 && r.found[i] != ref[i] && !Contains(ds, r.found[i], &pts[3 * i])))
         ++dis;
     }
-    std::printf("{\"locator\": \"%s\", \"cells\": %lld, \"build_ms\": %.3f, \"bytes\": %lld, "
+    long long differs = -1;
+    if (r.opencl && cpuIndex < locs.size())
+    {
+      differs = 0;
+      for (int i = 0; i < nPts; ++i)
+        differs += r.found[i] != results[cpuIndex].found[i];
+    }
+    std::printf("{\"locator\": \"%s\", \"backend\": \"%s\", \"device\": \"%s\", \"cells\": %lld, "
+                "\"build_ms\": %.3f, \"bytes\": %lld, "
                 "\"findcell_pts_per_s_1thread\": %.1f, \"findcell_pts_per_s_all\": %.1f, \"threads\": %d, "
+                "\"batch_pts_per_s\": %.1f, \"first_call_ms\": %.3f, \"first_call_phases\": \"%s\", \"phases\": \"%s\", "
+                "\"differs_from_cpu\": %lld, \"failed\": %s, "
                 "\"rays_per_s\": %.1f, \"points\": %d, \"found\": %lld, \"disagreements\": %lld}\n",
-      locs[li].name, static_cast<long long>(ds->GetNumberOfCells()), r.buildMs, r.bytes, r.pps1, r.ppsAll,
-      threads, r.raysPerS, nPts, found, dis);
+      locs[li].name, r.opencl ? "opencl" : "cpu", r.device.c_str(), static_cast<long long>(ds->GetNumberOfCells()),
+      r.buildMs, r.bytes, r.pps1, r.ppsAll, threads, r.batchPps, r.firstCallMs, r.firstPhases.c_str(), r.phases.c_str(), differs,
+      r.failed ? "true" : "false", r.raysPerS, nPts, found, dis);
   }
   return 0;
 }
