@@ -96,6 +96,18 @@ class Launcher {
   std::vector<std::pair<std::string, cl_event>> events_;
 };
 
+/// A matrix tree in the layout query.cl reads: level descriptors, every pointer matrix in one
+/// array, every inner level's bytes in another, and the geometry (root box lo/hi, 1 / leaf size as
+/// the builder computes it, then the node size of each level). Shared by the Tracer and the
+/// CellLocator uploads. `who` names the caller in the error for trees past 32-bit offsets.
+struct FlatTree {
+  std::vector<MtLevelDesc> levels;
+  std::vector<uint32_t> ptrs;
+  std::vector<uint8_t> inner;
+  std::vector<double> geom;
+};
+FlatTree flattenTree(const MatrixTree& tree, const char* who);
+
 }  // namespace ocl
 }  // namespace mtree
 

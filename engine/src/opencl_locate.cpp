@@ -40,39 +40,7 @@ void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const std
     S.uploaded = true;
     return;
   }
-  const int H = tree.height();
-  // The tree in the layout query.cl reads (the same flattening as Tracer::upload): level
-  // descriptors, every pointer matrix in one array, every inner level's bytes in another, and the
-  // geometry (root box, 1 / leaf size as the builder computes it, node size per level).
-  std::vector<MtLevelDesc> levels(H + 1);
-  std::vector<uint32_t> ptrs;
-  std::vector<uint8_t> inner;
-  for (int l = 0; l <= H; ++l) {
-    MtLevelDesc& d = levels[l];
-    d = MtLevelDesc{};
-    d.matrix = l == H ? tree.leafLevel().desc() : tree.innerLevel(l).desc();
-    const std::vector<uint32_t>& p = l == H ? tree.leafLevel().pointers() : tree.innerLevel(l).pointers();
-    if (ptrs.size() + p.size() >= MT_NULL || inner.size() >= MT_NULL)
-      throw std::length_error("OpenCL CellLocator: tree too large for 32-bit offsets");
-    d.matrix.ptrOffset = static_cast<uint32_t>(ptrs.size());
-    ptrs.insert(ptrs.end(), p.begin(), p.end());
-    if (l < H) {
-      d.matrix.dataOffset = static_cast<uint32_t>(inner.size());
-      inner.insert(inner.end(), tree.innerLevel(l).data().begin(), tree.innerLevel(l).data().end());
-    } else {
-      d.matrix.dataOffset = 0;
-    }
-    for (int a = 0; a < 3; ++a) d.logDims[a] = tree.logDim(l, a);
-  }
-  std::vector<double> geom(9 + 3 * (H + 1));
-  const Box& root = tree.rootBox();
-  for (int a = 0; a < 3; ++a) {
-    geom[a] = root.lo[a];
-    geom[3 + a] = root.hi[a];
-    geom[6 + a] = std::ldexp(1.0, tree.logDim(H, a)) / root.extent()[a];
-  }
-  for (int l = 0; l <= H; ++l)
-    for (int a = 0; a < 3; ++a) geom[9 + 3 * l + a] = tree.cellSize(l)[a];
+  const FlatTree flat = flattenTree(tree, "OpenCL CellLocator");
   // The cells as flat arrays (the CellSet keeps them private; rebuilt from its accessors).
   const size_t nc = cells.size();
   std::vector<uint32_t> offsets(nc + 1, 0), conn;
@@ -91,12 +59,12 @@ void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const std
     S.bytes += bytes;
   };
   const std::vector<uint32_t>& prims = tree.primitiveIndices();
-  put(S.levels, levels.data(), levels.size() * sizeof(MtLevelDesc), "level descriptors");
-  put(S.ptrs, ptrs.data(), ptrs.size() * sizeof(uint32_t), "pointer matrices");
-  put(S.inner, inner.data(), inner.size(), "inner levels");
+  put(S.levels, flat.levels.data(), flat.levels.size() * sizeof(MtLevelDesc), "level descriptors");
+  put(S.ptrs, flat.ptrs.data(), flat.ptrs.size() * sizeof(uint32_t), "pointer matrices");
+  put(S.inner, flat.inner.data(), flat.inner.size(), "inner levels");
   put(S.leaves, tree.leafLevel().data().data(), tree.leafLevel().data().size() * sizeof(MtLeafRange), "leaf ranges");
   put(S.prims, prims.data(), prims.size() * sizeof(uint32_t), "cell indices");
-  put(S.geom, geom.data(), geom.size() * sizeof(double), "tree geometry");
+  put(S.geom, flat.geom.data(), flat.geom.size() * sizeof(double), "tree geometry");
   put(S.boxes, leafBoxes.data(), leafBoxes.size(), "quantized leaf boxes");
   put(S.pts, cells.points().data(), cells.points().size() * sizeof(double), "cell points");
   put(S.offsets, offsets.data(), offsets.size() * sizeof(uint32_t), "cell offsets");

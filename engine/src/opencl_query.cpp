@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 #include "opencl_internal.h"
 
@@ -32,53 +34,56 @@ void Tracer::upload(const MatrixTree& tree, const TriangleMesh& mesh) {
     S.uploaded = true;
     return;
   }
-  const int H = tree.height();
-  // Level descriptors: every pointer matrix in one array, every inner level's bytes in another.
-  std::vector<MtLevelDesc> levels(H + 1);
-  std::vector<uint32_t> ptrs;
-  std::vector<uint8_t> inner;
-  for (int l = 0; l <= H; ++l) {
-    MtLevelDesc& d = levels[l];
-    d = MtLevelDesc{};
-    d.matrix = l == H ? tree.leafLevel().desc() : tree.innerLevel(l).desc();
-    const std::vector<uint32_t>& p = l == H ? tree.leafLevel().pointers() : tree.innerLevel(l).pointers();
-    if (ptrs.size() + p.size() >= MT_NULL || inner.size() >= MT_NULL)
-      throw std::length_error("MatrixTree (OpenCL): tree too large for 32-bit offsets");
-    d.matrix.ptrOffset = static_cast<uint32_t>(ptrs.size());
-    ptrs.insert(ptrs.end(), p.begin(), p.end());
-    if (l < H) {
-      d.matrix.dataOffset = static_cast<uint32_t>(inner.size());
-      inner.insert(inner.end(), tree.innerLevel(l).data().begin(), tree.innerLevel(l).data().end());
-    } else {
-      d.matrix.dataOffset = 0;
-    }
-    for (int a = 0; a < 3; ++a) d.logDims[a] = tree.logDim(l, a);
-  }
-  std::vector<double> geom(9 + 3 * (H + 1));
-  const Box& root = tree.rootBox();
-  for (int a = 0; a < 3; ++a) {
-    geom[a] = root.lo[a];
-    geom[3 + a] = root.hi[a];
-    // 1 / leaf size exactly as the builder computes it (builder.h: invLeaf_).
-    geom[6 + a] = std::ldexp(1.0, tree.logDim(H, a)) / root.extent()[a];
-  }
-  for (int l = 0; l <= H; ++l)
-    for (int a = 0; a < 3; ++a) geom[9 + 3 * l + a] = tree.cellSize(l)[a];
+  const FlatTree flat = flattenTree(tree, "MatrixTree (OpenCL)");
   Launcher run(impl, nullptr);
   auto put = [&](Buffer& b, const void* src, size_t bytes, const char* what) {
     b.ensure(impl, bytes, what);
     run.write(b, src, bytes, what);
   };
-  put(S.levels, levels.data(), levels.size() * sizeof(MtLevelDesc), "level descriptors");
-  put(S.ptrs, ptrs.data(), ptrs.size() * sizeof(uint32_t), "pointer matrices");
-  put(S.inner, inner.data(), inner.size(), "inner levels");
+  put(S.levels, flat.levels.data(), flat.levels.size() * sizeof(MtLevelDesc), "level descriptors");
+  put(S.ptrs, flat.ptrs.data(), flat.ptrs.size() * sizeof(uint32_t), "pointer matrices");
+  put(S.inner, flat.inner.data(), flat.inner.size(), "inner levels");
   put(S.leaves, tree.leafLevel().data().data(), tree.leafLevel().data().size() * sizeof(MtLeafRange), "leaf ranges");
   put(S.prims, tree.primitiveIndices().data(), tree.primitiveIndices().size() * sizeof(uint32_t), "triangle indices");
-  put(S.geom, geom.data(), geom.size() * sizeof(double), "tree geometry");
+  put(S.geom, flat.geom.data(), flat.geom.size() * sizeof(double), "tree geometry");
   put(S.pts, mesh.points().data(), mesh.points().size() * sizeof(double), "vertices");
   put(S.tris, mesh.triangles().data(), mesh.triangles().size() * sizeof(uint32_t), "triangles");
   run.finish();
   S.uploaded = true;
+}
+
+FlatTree flattenTree(const MatrixTree& tree, const char* who) {
+  const int H = tree.height();
+  FlatTree f;
+  f.levels.resize(H + 1);
+  for (int l = 0; l <= H; ++l) {
+    MtLevelDesc& d = f.levels[l];
+    d = MtLevelDesc{};
+    d.matrix = l == H ? tree.leafLevel().desc() : tree.innerLevel(l).desc();
+    const std::vector<uint32_t>& p = l == H ? tree.leafLevel().pointers() : tree.innerLevel(l).pointers();
+    if (f.ptrs.size() + p.size() >= MT_NULL || f.inner.size() >= MT_NULL)
+      throw std::length_error(std::string(who) + ": tree too large for 32-bit offsets");
+    d.matrix.ptrOffset = static_cast<uint32_t>(f.ptrs.size());
+    f.ptrs.insert(f.ptrs.end(), p.begin(), p.end());
+    if (l < H) {
+      d.matrix.dataOffset = static_cast<uint32_t>(f.inner.size());
+      f.inner.insert(f.inner.end(), tree.innerLevel(l).data().begin(), tree.innerLevel(l).data().end());
+    } else {
+      d.matrix.dataOffset = 0;
+    }
+    for (int a = 0; a < 3; ++a) d.logDims[a] = tree.logDim(l, a);
+  }
+  f.geom.assign(9 + 3 * (H + 1), 0.0);
+  const Box& root = tree.rootBox();
+  for (int a = 0; a < 3; ++a) {
+    f.geom[a] = root.lo[a];
+    f.geom[3 + a] = root.hi[a];
+    // 1 / leaf size exactly as the builder computes it (builder.h: invLeaf_).
+    f.geom[6 + a] = std::ldexp(1.0, tree.logDim(H, a)) / root.extent()[a];
+  }
+  for (int l = 0; l <= H; ++l)
+    for (int a = 0; a < 3; ++a) f.geom[9 + 3 * l + a] = tree.cellSize(l)[a];
+  return f;
 }
 
 namespace {
