@@ -91,6 +91,20 @@ inline mt_node mt_neighbour(MT_TREE_PARAMS, const mt_node* n, int axis, int dir,
 
 inline bool mt_finite3(mt_v3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
+/* MatrixTree::leafFind: the leaf, or the largest empty node, holding point p; false when p is
+ * not finite or outside the root box (*r untouched). */
+inline bool mt_leaf_find(MT_TREE_PARAMS, mt_v3 p, mt_node* r) {
+  if (!mt_finite3(p)) return false;
+  for (int a = 0; a < 3; ++a)
+    if (!(mt_at(p, a) >= geom[G_LO + a] && mt_at(p, a) <= geom[G_HI + a])) return false;
+  int L[3];
+  for (int a = 0; a < 3; ++a)
+    L[a] = mt_cell_index((mt_at(p, a) - geom[G_LO + a]) * geom[G_INV + a], 0, (1 << mt_log_dim(levels, H, a)) - 1);
+  uint visits = 0;
+  *r = mt_locate(MT_TREE_ARGS, L, 0, H + 1, &visits);
+  return true;
+}
+
 /* Points: 3 doubles each. out: 5 ints per point (level, i, j, k, exists); level -1 outside. */
 __kernel void mt_find_leaves(MT_TREE_PARAMS, __global const double* pts, uint n, __global int* out) {
   const uint q = get_global_id(0);
@@ -98,14 +112,8 @@ __kernel void mt_find_leaves(MT_TREE_PARAMS, __global const double* pts, uint n,
   const mt_v3 p = mt_load3(pts, q);
   __global int* o = out + 5 * q;
   o[0] = -1; o[1] = 0; o[2] = 0; o[3] = 0; o[4] = 0;
-  if (!mt_finite3(p)) return;
-  for (int a = 0; a < 3; ++a)
-    if (!(mt_at(p, a) >= geom[G_LO + a] && mt_at(p, a) <= geom[G_HI + a])) return;
-  int L[3];
-  for (int a = 0; a < 3; ++a)
-    L[a] = mt_cell_index((mt_at(p, a) - geom[G_LO + a]) * geom[G_INV + a], 0, (1 << mt_log_dim(levels, H, a)) - 1);
-  uint visits = 0;
-  const mt_node r = mt_locate(MT_TREE_ARGS, L, 0, H + 1, &visits);
+  mt_node r;
+  if (!mt_leaf_find(MT_TREE_ARGS, p, &r)) return;
   o[0] = r.level; o[1] = r.c[0]; o[2] = r.c[1]; o[3] = r.c[2]; o[4] = r.exists;
 }
 

@@ -68,17 +68,9 @@ __kernel void mt_locate_cells(MT_TREE_PARAMS, __global const uint* prims, __glob
   __global uint* o = out + 2 * (size_t)q;
   o[0] = MT_LOC_NONE;
   o[1] = 0;
-  /* leafFind, as mt_find_leaves. */
   const mt_v3 p = mt_load3(query, q);
-  if (!mt_finite3(p)) return;
-  for (int a = 0; a < 3; ++a)
-    if (!(mt_at(p, a) >= geom[G_LO + a] && mt_at(p, a) <= geom[G_HI + a])) return;
-  int L[3];
-  for (int a = 0; a < 3; ++a)
-    L[a] = mt_cell_index((mt_at(p, a) - geom[G_LO + a]) * geom[G_INV + a], 0, (1 << mt_log_dim(levels, H, a)) - 1);
-  uint visits = 0;
-  const mt_node leaf = mt_locate(MT_TREE_ARGS, L, 0, H + 1, &visits);
-  if (!leaf.exists) return;
+  mt_node leaf;
+  if (!mt_leaf_find(MT_TREE_ARGS, p, &leaf) || !leaf.exists) return;
   const MtSparseDesc ld = levels[H].matrix;
   const uint st = mt_storage_index(&ld, ptrs + ld.ptrOffset, leaf.c[0], leaf.c[1], leaf.c[2]);
   const MtLeafRange range = leaves[ld.dataOffset + st];

@@ -349,13 +349,9 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
   return min(max(vr_trunc_f((v - flo) * fscale + 0.5f), 0), last);
 }
 
-/* The float marcher (marchApron): one work-item per ray. */
-#define VR_DEFINE_APRON_MARCH_F(T, SFX)                                                                             \
-  __kernel void mt_volume_apron_##SFX##_f(__global const uint* bptr, __global const T* bricks,                     \
-                                          __global const ulong* masks, __global const uchar* occ,                  \
-                                          __global const int* ip, __global const double* dp,                       \
-                                          __global const float* table, __global float* out, __global uint* counts, \
-                                          int w, int h) {                                                          \
+/* The apron kernels' shared start: the work-item's pixel and ray (a missed ray writes zeros and
+ * returns), the volume and table parameters (see VolumeRenderer::render for ip/dp). */
+#define VR_APRON_PROLOGUE                                                                                          \
     const int gid = (int)get_global_id(0);                                                                         \
     if (gid >= w * h) return;                                                                                      \
     const int x = gid % w, y = gid / w;                                                                            \
@@ -370,7 +366,16 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
     const int n[3] = {ip[0], ip[1], ip[2]};                                                                        \
     const int levels = ip[9], last = ip[10], skip = ip[11], shade = ip[12], nb0 = ip[14], nb1 = ip[15];            \
     const double dt = dp[21];                                                                                      \
-    const float flo = (float)dp[27], fscale = (float)dp[28], offset = (float)dp[29];                               \
+    const float flo = (float)dp[27], fscale = (float)dp[28], offset = (float)dp[29];
+
+/* The float marcher (marchApron): one work-item per ray. */
+#define VR_DEFINE_APRON_MARCH_F(T, SFX)                                                                             \
+  __kernel void mt_volume_apron_##SFX##_f(__global const uint* bptr, __global const T* bricks,                     \
+                                          __global const ulong* masks, __global const uchar* occ,                  \
+                                          __global const int* ip, __global const double* dp,                       \
+                                          __global const float* table, __global float* out, __global uint* counts, \
+                                          int w, int h) {                                                          \
+    VR_APRON_PROLOGUE;                                                                                             \
     const float Tmin = 1.f - (float)dp[22];                                                                        \
     const double kxe = floor((t1 - t0) / dt);                                                                      \
     const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
@@ -499,21 +504,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
                                           __global const int* ip, __global const double* dp,                       \
                                           __global const float* table, __global float* out, __global uint* counts, \
                                           int w, int h) {                                                          \
-    const int gid = (int)get_global_id(0);                                                                         \
-    if (gid >= w * h) return;                                                                                      \
-    const int x = gid % w, y = gid / w;                                                                            \
-    double o[3], d[3], vd[3], t0, t1;                                                                              \
-    __global float* res = out + 4 * (size_t)gid;                                                                   \
-    if (!vr_setup_ray(ip, dp, x, y, w, h, o, d, vd, &t0, &t1)) {                                                   \
-      res[0] = res[1] = res[2] = res[3] = 0.f;                                                                     \
-      counts[2 * (size_t)gid] = 0;                                                                                 \
-      counts[2 * (size_t)gid + 1] = 0;                                                                             \
-      return;                                                                                                      \
-    }                                                                                                              \
-    const int n[3] = {ip[0], ip[1], ip[2]};                                                                        \
-    const int levels = ip[9], last = ip[10], skip = ip[11], shade = ip[12], nb0 = ip[14], nb1 = ip[15];            \
-    const double dt = dp[21];                                                                                      \
-    const float flo = (float)dp[27], fscale = (float)dp[28], offset = (float)dp[29];                               \
+    VR_APRON_PROLOGUE;                                                                                             \
     const double thr = (double)(float)dp[22];                                                                      \
     const double kxe = floor((t1 - t0) / dt);                                                                      \
     const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \

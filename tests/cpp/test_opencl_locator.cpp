@@ -35,21 +35,12 @@
 #include <vector>
 
 #include "opencl_test_util.h"
+#include "vtk_test_util.h"
 #include "test_util.h"
 
 namespace {
 
-/// Counts ErrorEvents and keeps the last message.
-class ErrorCatcher : public vtkCommand {
- public:
-  static ErrorCatcher* New() { return new ErrorCatcher; }
-  void Execute(vtkObject*, unsigned long, void* data) override {
-    ++count;
-    message = data ? static_cast<const char*>(data) : "";
-  }
-  int count = 0;
-  std::string message;
-};
+using mtest::ErrorCatcher;
 
 /// The volume cells of an SU2 mesh (NDIME, NELEM lines "type ids... index", NPOIN lines
 /// "x y z [index]"; markers skipped). SU2 element types are VTK's cell type codes.

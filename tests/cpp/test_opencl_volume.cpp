@@ -38,6 +38,7 @@
 #include "mtree/opencl.h"
 #include "mtree/volume.h"
 #include "opencl_test_util.h"
+#include "vtk_test_util.h"
 #include "test_util.h"
 
 namespace {
@@ -367,17 +368,7 @@ double maxDiff(const std::vector<float>& a, const std::vector<float>& b) {
   return m;
 }
 
-/// Counts ErrorEvents and keeps the last message.
-class ErrorCatcher : public vtkCommand {
- public:
-  static ErrorCatcher* New() { return new ErrorCatcher; }
-  void Execute(vtkObject*, unsigned long, void* data) override {
-    ++count;
-    message = data ? static_cast<const char*>(data) : "";
-  }
-  int count = 0;
-  std::string message;
-};
+using mtest::ErrorCatcher;
 
 /// vtkMatrixTreeVolumeRayCaster with Backend OPENCL against Backend CPU on the headsq CT (16-bit
 /// apron bricks): same image, same samples; the device upload is kept across renders (camera
