@@ -139,13 +139,9 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
   return !(miss || !(t0 <= t1));
 }
 
-/* The marcher, once per accumulation type R (float: renderVolume's default; double:
- * doublePrecision). out: premultiplied RGBA per ray; counts: samples and skips per ray. */
-#define VR_DEFINE_MARCH(R, SFX)                                                                                      \
-  __kernel void mt_volume_march_##SFX(__global const uint* ptr, __global const float* vdata,                       \
-                                      __global const uchar* occ, __global const int* ip, __global const double* dp, \
-                                      __global const float* table, __global float* out, __global uint* counts,     \
-                                      int w, int h) {                                                              \
+/* The marchers' shared start: the work-item's pixel and ray (a missed ray writes zeros and returns),
+ * the volume and table parameters (ip/dp: see VolumeRenderer::render). */
+#define VR_RAY_PROLOGUE                                                                                            \
     const int gid = (int)get_global_id(0);                                                                         \
     if (gid >= w * h) return;                                                                                      \
     const int x = gid % w, y = gid / w;                                                                            \
@@ -160,7 +156,16 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
     const int n[3] = {ip[0], ip[1], ip[2]};                                                                        \
     const int levels = ip[9], last = ip[10], skip = ip[11], shade = ip[12];                                        \
     const double dt = dp[21];                                                                                      \
-    const float flo = (float)dp[27], fscale = (float)dp[28];                                                       \
+    const float flo = (float)dp[27], fscale = (float)dp[28];
+
+/* The marcher, once per accumulation type R (float: renderVolume's default; double:
+ * doublePrecision). out: premultiplied RGBA per ray; counts: samples and skips per ray. */
+#define VR_DEFINE_MARCH(R, SFX)                                                                                      \
+  __kernel void mt_volume_march_##SFX(__global const uint* ptr, __global const float* vdata,                       \
+                                      __global const uchar* occ, __global const int* ip, __global const double* dp, \
+                                      __global const float* table, __global float* out, __global uint* counts,     \
+                                      int w, int h) {                                                              \
+    VR_RAY_PROLOGUE;                                                                                               \
     const double kxe = floor((t1 - t0) / dt);                                                                      \
     const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
     uint samples = 0, skips = 0;                                                                                   \
@@ -349,25 +354,6 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
   return min(max(vr_trunc_f((v - flo) * fscale + 0.5f), 0), last);
 }
 
-/* The apron kernels' shared start: the work-item's pixel and ray (a missed ray writes zeros and
- * returns), the volume and table parameters (see VolumeRenderer::render for ip/dp). */
-#define VR_APRON_PROLOGUE                                                                                          \
-    const int gid = (int)get_global_id(0);                                                                         \
-    if (gid >= w * h) return;                                                                                      \
-    const int x = gid % w, y = gid / w;                                                                            \
-    double o[3], d[3], vd[3], t0, t1;                                                                              \
-    __global float* res = out + 4 * (size_t)gid;                                                                   \
-    if (!vr_setup_ray(ip, dp, x, y, w, h, o, d, vd, &t0, &t1)) {                                                   \
-      res[0] = res[1] = res[2] = res[3] = 0.f;                                                                     \
-      counts[2 * (size_t)gid] = 0;                                                                                 \
-      counts[2 * (size_t)gid + 1] = 0;                                                                             \
-      return;                                                                                                      \
-    }                                                                                                              \
-    const int n[3] = {ip[0], ip[1], ip[2]};                                                                        \
-    const int levels = ip[9], last = ip[10], skip = ip[11], shade = ip[12], nb0 = ip[14], nb1 = ip[15];            \
-    const double dt = dp[21];                                                                                      \
-    const float flo = (float)dp[27], fscale = (float)dp[28], offset = (float)dp[29];
-
 /* The float marcher (marchApron): one work-item per ray. */
 #define VR_DEFINE_APRON_MARCH_F(T, SFX)                                                                             \
   __kernel void mt_volume_apron_##SFX##_f(__global const uint* bptr, __global const T* bricks,                     \
@@ -375,7 +361,9 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
                                           __global const int* ip, __global const double* dp,                       \
                                           __global const float* table, __global float* out, __global uint* counts, \
                                           int w, int h) {                                                          \
-    VR_APRON_PROLOGUE;                                                                                             \
+    VR_RAY_PROLOGUE;                                                                                               \
+    const int nb0 = ip[14], nb1 = ip[15];                                                                          \
+    const float offset = (float)dp[29];                                                                            \
     const float Tmin = 1.f - (float)dp[22];                                                                        \
     const double kxe = floor((t1 - t0) / dt);                                                                      \
     const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
@@ -504,7 +492,9 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
                                           __global const int* ip, __global const double* dp,                       \
                                           __global const float* table, __global float* out, __global uint* counts, \
                                           int w, int h) {                                                          \
-    VR_APRON_PROLOGUE;                                                                                             \
+    VR_RAY_PROLOGUE;                                                                                               \
+    const int nb0 = ip[14], nb1 = ip[15];                                                                          \
+    const float offset = (float)dp[29];                                                                            \
     const double thr = (double)(float)dp[22];                                                                      \
     const double kxe = floor((t1 - t0) / dt);                                                                      \
     const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \

@@ -105,6 +105,23 @@ void expectSameImage(ocl::VolumeRenderer& dev, const BlockSparseVolume& vol, con
   EXPECT_EQ(cpu.skips, gpu.skips);
 }
 
+/// expectSameImage over the 8 combinations of empty-space skipping, float/double accumulation and
+/// shading (sample distance 0.45, early termination at 0.95).
+void expectSameImageAllVariants(ocl::VolumeRenderer& dev, const BlockSparseVolume& vol, const VolumeGeometry& geo,
+                                const TransferTable& tf, const VolumeCamera& cam, const std::string& name) {
+  for (int variant = 0; variant < 8; ++variant) {
+    VolumeRenderOptions opt;
+    opt.sampleDistance = 0.45;
+    opt.emptySpaceSkipping = !(variant & 1);
+    opt.doublePrecision = variant & 2;
+    opt.shade = variant & 4;
+    opt.earlyTermination = 0.95;
+    expectSameImage(dev, vol, geo, tf, cam, opt,
+                    name + (opt.emptySpaceSkipping ? " skip" : " noskip") + (opt.doublePrecision ? " double" : " float") +
+                        (opt.shade ? " shaded" : ""));
+  }
+}
+
 /// Gaussian blobs plus a ripple, on an nx x ny x nz grid.
 std::vector<float> blobs(const int n[3]) {
   std::vector<float> v(size_t(n[0]) * n[1] * n[2]);
@@ -142,17 +159,7 @@ TEST(opencl_volume, SyntheticMatchesCpu) {
   ocl::VolumeRenderer dev(ctx);
   dev.upload(vol);
   const VolumeCamera cam = lookAt(centre + Vec3(-40, 30, -55), centre, 72, 60);
-  for (int variant = 0; variant < 8; ++variant) {
-    VolumeRenderOptions opt;
-    opt.sampleDistance = 0.45;
-    opt.emptySpaceSkipping = !(variant & 1);
-    opt.doublePrecision = variant & 2;
-    opt.shade = variant & 4;
-    opt.earlyTermination = 0.95;
-    expectSameImage(dev, vol, geo, tf, cam, opt,
-                    std::string("synthetic") + (opt.emptySpaceSkipping ? " skip" : " noskip") +
-                        (opt.doublePrecision ? " double" : " float") + (opt.shade ? " shaded" : ""));
-  }
+  expectSameImageAllVariants(dev, vol, geo, tf, cam, "synthetic");
   VolumeRenderOptions opt;
   opt.sampleDistance = 0.6;
   VolumeCamera par = cam;
@@ -229,17 +236,7 @@ void apronVariants(const std::shared_ptr<ocl::Context>& ctx, const std::vector<T
   ocl::VolumeRenderer dev(ctx);
   dev.upload(vol);
   const VolumeCamera cam = lookAt(centre + Vec3(-40, 30, -55), centre, 72, 60);
-  for (int variant = 0; variant < 8; ++variant) {
-    VolumeRenderOptions opt;
-    opt.sampleDistance = 0.45;
-    opt.emptySpaceSkipping = !(variant & 1);
-    opt.doublePrecision = variant & 2;
-    opt.shade = variant & 4;
-    opt.earlyTermination = 0.95;
-    expectSameImage(dev, vol, geo, tf, cam, opt,
-                    name + (opt.emptySpaceSkipping ? " skip" : " noskip") + (opt.doublePrecision ? " double" : " float") +
-                        (opt.shade ? " shaded" : ""));
-  }
+  expectSameImageAllVariants(dev, vol, geo, tf, cam, name);
   VolumeRenderOptions opt;
   opt.sampleDistance = 0.6;
   VolumeCamera par = cam;
