@@ -473,6 +473,10 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
                "--leaf-scale", str(args.leaf_scale)]
         if args.device:
             cmd += ["--device", args.device]
+        if args.octree_height:
+            cmd += ["--octree-height", str(args.octree_height)]
+        if args.kdtree_height:
+            cmd += ["--kdtree-height", str(args.kdtree_height)]
         if heat_out:
             cmd += ["--heatmaps", raw]
         proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -532,6 +536,10 @@ def main(argv=None) -> int:
                     help="matrix trees: leaf extent as a multiple of the median triangle extent "
                          "(the automatic height rule; default 1.0, the rendering setting: the engine's "
                          "default 2.0 favours build time)")
+    ap.add_argument("--octree-height", type=int, default=0,
+                    help="matrix octree: levels below the root instead of the automatic height (0 = automatic)")
+    ap.add_argument("--kdtree-height", type=int, default=0,
+                    help="matrix kd-tree: levels below the root instead of the automatic height (0 = automatic)")
     ap.add_argument("--backend", choices=("cpu", "opencl", "all"), default="cpu",
                     help="cpu (OpenMP engine), opencl (matrix trees on the OpenCL device) or all")
     ap.add_argument("--device", default="",
