@@ -93,38 +93,10 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
   const auto start = std::chrono::steady_clock::now();
   State& S = *st_;
   if (!S.uploaded) throw Error("OpenCL VolumeRenderer: no volume uploaded; call upload(volume) first");
-  // renderVolume's argument checks, with its messages.
-  if (tf.size() < 2) throw std::invalid_argument("renderVolume (OpenCL): empty transfer table");
-  for (int a = 0; a < 3; ++a)
-    if (!(geo.spacing[a] != 0) || !std::isfinite(geo.spacing[a]) || !std::isfinite(geo.origin[a]))
-      throw std::invalid_argument("renderVolume (OpenCL): spacing must be finite and non-zero, origin finite");
-  if (!(opt.sampleDistance > 0) || !std::isfinite(opt.sampleDistance))
-    throw std::invalid_argument("renderVolume (OpenCL): sample distance must be positive");
-  if (!(opt.imageSampleDistance >= 1) || !std::isfinite(opt.imageSampleDistance))
-    throw std::invalid_argument("renderVolume (OpenCL): image sample distance must be >= 1");
-  if (cam.width < 1 || cam.height < 1 || cam.width > 16384 || cam.height > 16384)
-    throw std::invalid_argument("renderVolume (OpenCL): image size must be in 1..16384");
-  const Vec3 fwd0 = cam.focalPoint - cam.position;
-  if (!isFinite(cam.position) || !isFinite(cam.focalPoint) || norm(fwd0) == 0 ||
-      norm(cross(fwd0, cam.viewUp)) == 0 || (!cam.parallel && !(cam.viewAngle > 0 && cam.viewAngle < 180)) ||
-      (cam.parallel && !(cam.parallelScale > 0)))
-    throw std::invalid_argument("renderVolume (OpenCL): degenerate camera (position = focal point, view up along "
-                                "the view, or view angle/parallel scale out of range)");
-
-  // The step-corrected, premultiplied table (renderVolume's loop).
-  const int ne = tf.size();
-  std::vector<float> table(size_t(ne) * 4);
-  const double ratio = opt.sampleDistance / tf.unitDistance();
-  for (int i = 0; i < ne; ++i) {
-    const float* e = tf.rgba().data() + 4 * size_t(i);
-    const double a = e[3] >= 1.f ? 1.0 : 1.0 - std::pow(1.0 - double(e[3]), ratio);
-    for (int ch = 0; ch < 3; ++ch) table[4 * size_t(i) + ch] = static_cast<float>(e[ch] * a);
-    table[4 * size_t(i) + 3] = static_cast<float>(a);
-  }
-  // TransferTable::index's float lo and scale (its constructor's expressions).
-  const int last = ne - 1;
-  const float flo = static_cast<float>(tf.lo());
-  const float fscale = static_cast<float>(last / (tf.hi() - tf.lo()));
+  checkVolumeRenderArguments(geo, tf, cam, opt, "renderVolume (OpenCL)");
+  const std::vector<float> table = stepCorrectedTable(tf, opt.sampleDistance);
+  const int last = tf.lastIndex();
+  const float flo = tf.indexLo(), fscale = tf.indexScale();
 
   const int w = std::max(1, static_cast<int>(std::lround(cam.width / opt.imageSampleDistance)));
   const int h = std::max(1, static_cast<int>(std::lround(cam.height / opt.imageSampleDistance)));
@@ -139,8 +111,7 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
                              opt.emptySpaceSkipping ? 1 : 0, opt.shade ? 1 : 0, cam.parallel ? 1 : 0};
   ip.insert(ip.end(), S.levelInts.begin(), S.levelInts.end());
   // The CPU compares against the threshold as a float (Frame::threshold): send that value.
-  const double threshold =
-      double(static_cast<float>(opt.earlyTermination >= 1 ? 2.0 : std::max(0.0, opt.earlyTermination)));
+  const double threshold = double(earlyTerminationThreshold(opt));
   const std::vector<double> dp = {cam.position.x, cam.position.y, cam.position.z, fwd.x, fwd.y, fwd.z,
                                   right.x, right.y, right.z, up.x, up.y, up.z, th, aspect, cam.parallelScale,
                                   geo.origin[0], geo.origin[1], geo.origin[2],

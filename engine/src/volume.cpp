@@ -856,36 +856,45 @@ std::vector<float> upsampleRGBA(const std::vector<float>& small, int w, int h, i
   return out;
 }
 
-VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
-                         const VolumeCamera& cam, const VolumeRenderOptions& opt) {
-  const auto start = std::chrono::steady_clock::now();
-  if (vol.levelCount() == 0) throw std::invalid_argument("renderVolume: the volume was not built");
-  if (tf.size() < 2) throw std::invalid_argument("renderVolume: empty transfer table");
+void checkVolumeRenderArguments(const VolumeGeometry& geo, const TransferTable& tf, const VolumeCamera& cam,
+                                const VolumeRenderOptions& opt, const char* who) {
+  const std::string w(who);
+  if (tf.size() < 2) throw std::invalid_argument(w + ": empty transfer table");
   for (int a = 0; a < 3; ++a)
     if (!(geo.spacing[a] != 0) || !std::isfinite(geo.spacing[a]) || !std::isfinite(geo.origin[a]))
-      throw std::invalid_argument("renderVolume: spacing must be finite and non-zero, origin finite");
+      throw std::invalid_argument(w + ": spacing must be finite and non-zero, origin finite");
   if (!(opt.sampleDistance > 0) || !std::isfinite(opt.sampleDistance))
-    throw std::invalid_argument("renderVolume: sample distance must be positive");
+    throw std::invalid_argument(w + ": sample distance must be positive");
   if (!(opt.imageSampleDistance >= 1) || !std::isfinite(opt.imageSampleDistance))
-    throw std::invalid_argument("renderVolume: image sample distance must be >= 1");
+    throw std::invalid_argument(w + ": image sample distance must be >= 1");
   if (cam.width < 1 || cam.height < 1 || cam.width > 16384 || cam.height > 16384)
-    throw std::invalid_argument("renderVolume: image size must be in 1..16384");
+    throw std::invalid_argument(w + ": image size must be in 1..16384");
   const Vec3 fwd = cam.focalPoint - cam.position;
   if (!isFinite(cam.position) || !isFinite(cam.focalPoint) || norm(fwd) == 0 || norm(cross(fwd, cam.viewUp)) == 0 ||
       (!cam.parallel && !(cam.viewAngle > 0 && cam.viewAngle < 180)) || (cam.parallel && !(cam.parallelScale > 0)))
-    throw std::invalid_argument("renderVolume: degenerate camera (position = focal point, view up along the view, "
-                                "or view angle/parallel scale out of range)");
+    throw std::invalid_argument(w + ": degenerate camera (position = focal point, view up along the view, "
+                                    "or view angle/parallel scale out of range)");
+}
 
-  // Opacity correction for the step: alpha' = 1 - (1 - alpha)^(step / unit), colour premultiplied.
+std::vector<float> stepCorrectedTable(const TransferTable& tf, double sampleDistance) {
   const int ne = tf.size();
   std::vector<float> table(size_t(ne) * 4);
-  const double ratio = opt.sampleDistance / tf.unitDistance();
+  const double ratio = sampleDistance / tf.unitDistance();
   for (int i = 0; i < ne; ++i) {
     const float* e = tf.rgba().data() + 4 * size_t(i);
     const double a = e[3] >= 1.f ? 1.0 : 1.0 - std::pow(1.0 - double(e[3]), ratio);
     for (int ch = 0; ch < 3; ++ch) table[4 * size_t(i) + ch] = static_cast<float>(e[ch] * a);
     table[4 * size_t(i) + 3] = static_cast<float>(a);
   }
+  return table;
+}
+
+VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
+                         const VolumeCamera& cam, const VolumeRenderOptions& opt) {
+  const auto start = std::chrono::steady_clock::now();
+  if (vol.levelCount() == 0) throw std::invalid_argument("renderVolume: the volume was not built");
+  checkVolumeRenderArguments(geo, tf, cam, opt, "renderVolume");
+  const std::vector<float> table = stepCorrectedTable(tf, opt.sampleDistance);
 
   Frame F;
   F.vol = &vol;
@@ -900,7 +909,7 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   F.tlast = tf.lastIndex();
   F.offset = vol.storageOffset();
   F.dt = opt.sampleDistance;
-  F.threshold = opt.earlyTermination >= 1 ? 2.f : float(std::max(0.0, opt.earlyTermination));
+  F.threshold = earlyTerminationThreshold(opt);
   F.ambient = opt.ambient;
   F.diffuse = opt.diffuse;
   F.specular = opt.specular;

@@ -266,6 +266,23 @@ struct VolumeImage {
 VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
                          const VolumeCamera& cam, const VolumeRenderOptions& opt);
 
+/// renderVolume's argument checks, shared by the CPU and the OpenCL renderers: throws
+/// std::invalid_argument, the message starting with `who`, on an empty table, a zero or
+/// non-finite spacing, a non-finite origin, a non-positive sample distance, an image sample
+/// distance < 1, an image size outside 1..16384, or a degenerate camera.
+void checkVolumeRenderArguments(const VolumeGeometry& geo, const TransferTable& tf, const VolumeCamera& cam,
+                                const VolumeRenderOptions& opt, const char* who);
+
+/// The table the marchers read: each entry's opacity corrected for the step,
+/// alpha' = 1 - (1 - alpha)^(sampleDistance / unit distance), and its colour premultiplied by it
+/// (4 floats per entry).
+std::vector<float> stepCorrectedTable(const TransferTable& tf, double sampleDistance);
+
+/// The accumulated opacity at which a ray stops, as the marchers compare it (a float; 2 = never).
+inline float earlyTerminationThreshold(const VolumeRenderOptions& opt) {
+  return opt.earlyTermination >= 1 ? 2.f : static_cast<float>(std::max(0.0, opt.earlyTermination));
+}
+
 /// The full-size image from one rendered at w x h pixels (an image sample distance > 1): bilinear
 /// reconstruction with pixel centres aligned, as VTK's ImageSampleDistance. Shared by the CPU and
 /// the OpenCL renderers.
