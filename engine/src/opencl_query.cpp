@@ -87,6 +87,16 @@ FlatTree flattenTree(const MatrixTree& tree, const char* who) {
 }
 
 namespace {
+/// Sums the per-ray (node visits, triangle tests) pairs the ray kernels wrote into `counters`.
+void addRayCounters(Launcher& run, Buffer& counters, size_t n, uint64_t* visits, uint64_t* tests) {
+  std::vector<uint32_t> c(2 * n);
+  run.read(counters, c.data(), c.size() * sizeof(uint32_t), "ray counters");
+  for (size_t i = 0; i < n; ++i) {
+    if (visits) *visits += c[2 * i];
+    if (tests) *tests += c[2 * i + 1];
+  }
+}
+
 void requireUploaded(bool up) {
   if (!up) throw Error("OpenCL Tracer: no tree uploaded; call upload(tree, mesh) first");
 }
@@ -128,14 +138,7 @@ void Tracer::intersectFirst(const double* orig, const double* dirs, size_t n, do
             S.dirs, nn, tmin, tmax, S.tOut, S.primOut, nullptr);
   run.read(S.tOut, t, n * sizeof(double), "hit distances");
   run.read(S.primOut, prim, n * sizeof(uint32_t), "hit triangles");
-  if (count) {
-    std::vector<uint32_t> c(2 * n);
-    run.read(S.counters, c.data(), c.size() * sizeof(uint32_t), "ray counters");
-    for (size_t i = 0; i < n; ++i) {
-      if (visits) *visits += c[2 * i];
-      if (tests) *tests += c[2 * i + 1];
-    }
-  }
+  if (count) addRayCounters(run, S.counters, n, visits, tests);
   run.finish();
 }
 
@@ -170,14 +173,7 @@ void Tracer::intersectAny(const double* orig, const double* dirs, size_t n, doub
     run.run("mt_any_hit", n, 0, S.levels, S.ptrs, S.inner, S.leaves, S.geom, H, S.prims, S.pts, S.tris, S.orig,
             S.dirs, nn, tmin, tmax, S.hitOut, nullptr);
   run.read(S.hitOut, hit, n, "shadow hits");
-  if (count) {
-    std::vector<uint32_t> c(2 * n);
-    run.read(S.counters, c.data(), c.size() * sizeof(uint32_t), "ray counters");
-    for (size_t i = 0; i < n; ++i) {
-      if (visits) *visits += c[2 * i];
-      if (tests) *tests += c[2 * i + 1];
-    }
-  }
+  if (count) addRayCounters(run, S.counters, n, visits, tests);
   run.finish();
 }
 
