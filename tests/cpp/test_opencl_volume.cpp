@@ -40,33 +40,16 @@
 #include "opencl_test_util.h"
 #include "vtk_test_util.h"
 #include "test_util.h"
+#include "volume_test_util.h"
 
 namespace {
 
 using namespace mtree;
 
 
-/// Transparent below `threshold` (fraction of [lo, hi]), a colour and opacity ramp above.
-TransferTable rampTable(double lo, double hi, double threshold, float maxAlpha, int n = 1024) {
-  std::vector<float> rgba;
-  for (int i = 0; i < n; ++i) {
-    const double s = double(i) / (n - 1);
-    const double a = s <= threshold ? 0.0 : maxAlpha * (s - threshold) / (1 - threshold);
-    rgba.insert(rgba.end(), {float(s), float(0.5 * s + 0.2), float(1 - s), float(a)});
-  }
-  return TransferTable(lo, hi, rgba, 1.0);
-}
+using mtest::rampTable;
 
-VolumeCamera lookAt(Vec3 eye, Vec3 target, int w, int h, double angle = 30) {
-  VolumeCamera c;
-  c.position = eye;
-  c.focalPoint = target;
-  c.viewUp = Vec3(0, 1, 0);
-  c.viewAngle = angle;
-  c.width = w;
-  c.height = h;
-  return c;
-}
+using mtest::lookAt;
 
 /// Largest per-channel difference; counts the channels that differ at all.
 double maxDiff(const VolumeImage& a, const VolumeImage& b, size_t* differing) {

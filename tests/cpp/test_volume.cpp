@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "mtree/volume.h"
+#include "volume_test_util.h"
 
 using namespace mtree;
 
@@ -34,16 +35,7 @@ TransferTable constantTable(double lo, double hi, float alpha, int n = 64) {
   return TransferTable(lo, hi, rgba, 1.0);
 }
 
-/// Transparent below `threshold` (fraction of [lo, hi]), a colour and opacity ramp above.
-TransferTable rampTable(double lo, double hi, double threshold, float maxAlpha, int n = 1024) {
-  std::vector<float> rgba;
-  for (int i = 0; i < n; ++i) {
-    const double s = double(i) / (n - 1);
-    const double a = s <= threshold ? 0.0 : maxAlpha * (s - threshold) / (1 - threshold);
-    rgba.insert(rgba.end(), {float(s), float(0.5 * s + 0.2), float(1 - s), float(a)});
-  }
-  return TransferTable(lo, hi, rgba, 1.0);
-}
+using mtest::rampTable;
 
 struct Dense {
   int n[3];
@@ -86,16 +78,7 @@ Dense blobs(int nx, int ny, int nz, unsigned seed) {
   return d;
 }
 
-VolumeCamera lookAt(Vec3 pos, Vec3 focal, int w = 1, int h = 1) {
-  VolumeCamera c;
-  c.position = pos;
-  c.focalPoint = focal;
-  c.viewUp = std::fabs(normalized(focal - pos).y) > 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
-  c.viewAngle = 30;
-  c.width = w;
-  c.height = h;
-  return c;
-}
+using mtest::lookAt;
 
 double maxDiff(const VolumeImage& a, const VolumeImage& b) {
   double m = 0;

@@ -1,0 +1,35 @@
+// Shared by the volume test suites (CPU and OpenCL): a ramp transfer table and a look-at camera.
+#pragma once
+
+#include <cmath>
+#include <vector>
+
+#include "mtree/volume.h"
+
+namespace mtest {
+
+/// Transparent below `threshold` (fraction of [lo, hi]), a colour and opacity ramp above.
+inline mtree::TransferTable rampTable(double lo, double hi, double threshold, float maxAlpha, int n = 1024) {
+  std::vector<float> rgba;
+  for (int i = 0; i < n; ++i) {
+    const double s = double(i) / (n - 1);
+    const double a = s <= threshold ? 0.0 : maxAlpha * (s - threshold) / (1 - threshold);
+    rgba.insert(rgba.end(), {float(s), float(0.5 * s + 0.2), float(1 - s), float(a)});
+  }
+  return mtree::TransferTable(lo, hi, rgba, 1.0);
+}
+
+/// A perspective camera at `pos` looking at `focal`, w x h pixels, vertical view angle `angle`
+/// degrees; view up +y, or +x when looking almost along y.
+inline mtree::VolumeCamera lookAt(mtree::Vec3 pos, mtree::Vec3 focal, int w = 1, int h = 1, double angle = 30) {
+  mtree::VolumeCamera c;
+  c.position = pos;
+  c.focalPoint = focal;
+  c.viewUp = std::fabs(mtree::normalized(focal - pos).y) > 0.9 ? mtree::Vec3(1, 0, 0) : mtree::Vec3(0, 1, 0);
+  c.viewAngle = angle;
+  c.width = w;
+  c.height = h;
+  return c;
+}
+
+}  // namespace mtest
