@@ -116,15 +116,7 @@ uint64_t scanOnDevice(Context::Impl& impl, Launcher& run, Buffer& tileSums,
 void Builder::build(const TriangleMesh& mesh, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats,
                     std::vector<KernelTiming>* kernels) {
   // Options are checked exactly as the CPU builder checks them.
-  if (opt.height < 0 || opt.height >= MT_MAX_LEVELS)
-    throw std::invalid_argument("MatrixTree: height must be in [0, " + std::to_string(MT_MAX_LEVELS - 1) +
-                                "] (0 = automatic), got " + std::to_string(opt.height));
-  if (opt.blockEdge < 1 || opt.blockEdge > 32 || (opt.blockEdge & (opt.blockEdge - 1)))
-    throw std::invalid_argument("MatrixTree: block edge must be a power of two in [1, 32], got " +
-                                std::to_string(opt.blockEdge));
-  if (!(opt.leafScale > 0)) throw std::invalid_argument("MatrixTree: leafScale must be > 0");
-  if (!(opt.maxCandidates >= 1)) throw std::invalid_argument("MatrixTree: maxCandidates must be >= 1");
-  if (mesh.size() >= MT_NULL) throw std::length_error("MatrixTree: too many primitives for 32-bit indices");
+  mtree::detail::checkBuildOptions(opt, mesh.size());
   if (mesh.numPoints() * 3 > (uint64_t(1) << 31))
     throw std::length_error("MatrixTree (OpenCL): more than 2^31 coordinates");
 

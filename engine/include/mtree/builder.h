@@ -113,11 +113,10 @@ int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, dou
   while (H > 0 && meanCandidates(H) > opt.maxCandidates) --H;
   return H;
 }
-}  // namespace detail
-
-template <class Prims>
-void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree,
-                                     BuildStats* stats) {
+/// The build's argument checks, shared by the CPU and the OpenCL builders: std::invalid_argument
+/// for a height outside [0, MT_MAX_LEVELS), a block edge that is not a power of two in [1, 32],
+/// leafScale <= 0 or maxCandidates < 1; std::length_error past 32-bit primitive indices.
+inline void checkBuildOptions(const BuildOptions& opt, size_t numPrimitives) {
   if (opt.height < 0 || opt.height >= MT_MAX_LEVELS)
     throw std::invalid_argument("MatrixTree: height must be in [0, " + std::to_string(MT_MAX_LEVELS - 1) +
                                 "] (0 = automatic), got " + std::to_string(opt.height));
@@ -126,7 +125,14 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
                                 std::to_string(opt.blockEdge));
   if (!(opt.leafScale > 0)) throw std::invalid_argument("MatrixTree: leafScale must be > 0");
   if (!(opt.maxCandidates >= 1)) throw std::invalid_argument("MatrixTree: maxCandidates must be >= 1");
-  if (prims.size() >= MT_NULL) throw std::length_error("MatrixTree: too many primitives for 32-bit indices");
+  if (numPrimitives >= MT_NULL) throw std::length_error("MatrixTree: too many primitives for 32-bit indices");
+}
+}  // namespace detail
+
+template <class Prims>
+void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree,
+                                     BuildStats* stats) {
+  detail::checkBuildOptions(opt, prims.size());
 
   const int threads = resolveThreads(opt.threads);
   if (stats) *stats = BuildStats{};
