@@ -20,21 +20,13 @@ namespace mtree {
 // t range for all rays). nodeVisits/primTests per pixel stay 0 (the kernels give sums only).
 inline RenderResult renderOpenCL(ocl::Tracer& tracer, const TriangleMesh& mesh, const Box& sceneBox, const Camera& cam,
                           const RenderOptions& opt, double* traceMs = nullptr) {
-  RenderResult r;
+  RenderResult r = blankRenderResult(cam);
   const int W = cam.width, Hh = cam.height;
-  r.width = W;
-  r.height = Hh;
+  if (W <= 0 || Hh <= 0) return r;
   const size_t npix = size_t(W) * Hh;
-  r.rgb.assign(npix * 3, 0);
-  r.nodeVisits.assign(npix, 0);
-  r.primTests.assign(npix, 0);
-  r.depth.assign(npix, std::numeric_limits<float>::infinity());
-  r.hitPrim.assign(npix, MT_NULL);
   const auto t0 = std::chrono::steady_clock::now();
   const PinholeRays rays(cam);
-  const double diag = sceneBox.empty() ? 1.0 : std::max(norm(sceneBox.extent()), 1e-300);
-  const double eps = 1e-7 * diag + 1e-9 * norm(sceneBox.center());
-  const Vec3 light = opt.lightFromCamera ? cam.eye + rays.up * (0.5 * diag) + rays.right * (0.3 * diag) : opt.light;
+  const Shading sh(sceneBox, cam, rays, opt);
   std::vector<double> o(3 * npix), d(3 * npix), t(npix);
   std::vector<uint32_t> prim(npix);
   for (int y = 0; y < Hh; ++y)
@@ -56,15 +48,13 @@ inline RenderResult renderOpenCL(ocl::Tracer& tracer, const TriangleMesh& mesh, 
   for (size_t pix = 0; pix < npix; ++pix) {
     if (prim[pix] == MT_NULL) continue;
     const Vec3 dir(d[3 * pix], d[3 * pix + 1], d[3 * pix + 2]);
-    const Vec3 a = mesh.vertex(prim[pix], 0), b = mesh.vertex(prim[pix], 1), cc = mesh.vertex(prim[pix], 2);
-    Vec3 n = normalized(cross(b - a, cc - a));
-    if (dot(n, dir) > 0) n = n * -1.0;
+    const Vec3 n = Shading::facingNormal(mesh, prim[pix], dir);
     const Vec3 p = cam.eye + dir * t[pix];
-    const Vec3 toL = light - p;
+    const Vec3 toL = sh.light - p;
     const double distL = norm(toL);
     diffuse[pix] = std::max(0.0, dot(n, toL * (1.0 / distL)));
     if (opt.shadows && diffuse[pix] > 0) {
-      const Vec3 q = p + n * eps;
+      const Vec3 q = p + n * sh.eps;
       for (int k = 0; k < 3; ++k) {
         so.push_back(q[k]);
         sd.push_back(toL[k]);
@@ -83,13 +73,11 @@ inline RenderResult renderOpenCL(ocl::Tracer& tracer, const TriangleMesh& mesh, 
     Vec3 c = opt.background;
     if (prim[pix] != MT_NULL) {
       ++r.hits;
-      const double s = opt.ambient + (1 - opt.ambient) * diffuse[pix];
-      c = Vec3(opt.albedo.x * s, opt.albedo.y * s, opt.albedo.z * s);
+      c = Shading::colour(opt, diffuse[pix]);
       r.depth[pix] = static_cast<float>(t[pix]);
       r.hitPrim[pix] = prim[pix];
     }
-    for (int k = 0; k < 3; ++k)
-      r.rgb[pix * 3 + k] = static_cast<uint8_t>(std::min(255.0, std::max(0.0, c[k] * 255.0 + 0.5)));
+    Shading::store(r, pix, c);
   }
   r.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   r.primaryRays = npix;

@@ -68,6 +68,48 @@ struct PinholeRays {
   }
 };
 
+/// The per-pixel arrays of a cam.width x cam.height render, before any ray: black, no hits, zero
+/// counters (empty for a non-positive size). Shared by render() and renderOpenCL().
+inline RenderResult blankRenderResult(const Camera& cam) {
+  RenderResult r;
+  r.width = cam.width;
+  r.height = cam.height;
+  if (cam.width <= 0 || cam.height <= 0) return r;
+  const size_t npix = size_t(cam.width) * cam.height;
+  r.rgb.assign(npix * 3, 0);
+  r.nodeVisits.assign(npix, 0);
+  r.primTests.assign(npix, 0);
+  r.depth.assign(npix, std::numeric_limits<float>::infinity());
+  r.hitPrim.assign(npix, MT_NULL);
+  return r;
+}
+
+/// The shading every renderer shares: the point light (above and right of the eye, scaled by the
+/// scene's diagonal, unless opt gives it), the shadow-ray offset along the normal, the normal
+/// turned towards the viewer, Lambert plus ambient, and the colour's 8-bit quantisation.
+struct Shading {
+  Vec3 light;
+  double eps = 0;
+  Shading(const Box& sceneBox, const Camera& cam, const PinholeRays& rays, const RenderOptions& opt) {
+    const double diag = sceneBox.empty() ? 1.0 : std::max(norm(sceneBox.extent()), 1e-300);
+    eps = 1e-7 * diag + 1e-9 * norm(sceneBox.center());
+    light = opt.lightFromCamera ? cam.eye + rays.up * (0.5 * diag) + rays.right * (0.3 * diag) : opt.light;
+  }
+  static Vec3 facingNormal(const TriangleMesh& mesh, uint32_t prim, Vec3 dir) {
+    const Vec3 a = mesh.vertex(prim, 0), b = mesh.vertex(prim, 1), c = mesh.vertex(prim, 2);
+    const Vec3 n = normalized(cross(b - a, c - a));
+    return dot(n, dir) > 0 ? n * -1.0 : n;
+  }
+  static Vec3 colour(const RenderOptions& opt, double diffuse) {
+    const double s = opt.ambient + (1 - opt.ambient) * diffuse;
+    return Vec3(opt.albedo.x * s, opt.albedo.y * s, opt.albedo.z * s);
+  }
+  static void store(RenderResult& r, size_t pix, Vec3 c) {
+    for (int k = 0; k < 3; ++k)
+      r.rgb[pix * 3 + k] = static_cast<uint8_t>(std::min(255.0, std::max(0.0, c[k] * 255.0 + 0.5)));
+  }
+};
+
 /// The matrix-tree tracer over a triangle mesh, with a choice of ray/triangle test.
 struct MatrixTreeTracer {
   const MatrixTree& tree;
@@ -89,23 +131,12 @@ struct MatrixTreeTracer {
 template <class Tracer>
 RenderResult render(const Tracer& tracer, const TriangleMesh& mesh, const Box& sceneBox, const Camera& cam,
                     const RenderOptions& opt) {
-  RenderResult r;
+  RenderResult r = blankRenderResult(cam);
   const int W = cam.width, Hh = cam.height;
-  r.width = W;
-  r.height = Hh;
   if (W <= 0 || Hh <= 0) return r;
   const size_t npix = size_t(W) * Hh;
-  r.rgb.assign(npix * 3, 0);
-  r.nodeVisits.assign(npix, 0);
-  r.primTests.assign(npix, 0);
-  r.depth.assign(npix, std::numeric_limits<float>::infinity());
-  r.hitPrim.assign(npix, MT_NULL);
-
   const PinholeRays rays(cam);
-  const Vec3 right = rays.right, up = rays.up;
-  const double diag = sceneBox.empty() ? 1.0 : std::max(norm(sceneBox.extent()), 1e-300);
-  const double eps = 1e-7 * diag + 1e-9 * norm(sceneBox.center());
-  const Vec3 light = opt.lightFromCamera ? cam.eye + up * (0.5 * diag) + right * (0.3 * diag) : opt.light;
+  const Shading sh(sceneBox, cam, rays, opt);
   const int threads = resolveThreads(opt.threads);
 
   uint64_t hits = 0, shadowRays = 0;
@@ -124,25 +155,21 @@ RenderResult render(const Tracer& tracer, const TriangleMesh& mesh, const Box& s
         Vec3 c = opt.background;
         if (tracer.first(cam.eye, d, 0.0, std::numeric_limits<double>::infinity(), h, &ps)) {
           ++hits;
-          const Vec3 a = mesh.vertex(h.prim, 0), b = mesh.vertex(h.prim, 1), cc = mesh.vertex(h.prim, 2);
-          Vec3 n = normalized(cross(b - a, cc - a));
-          if (dot(n, d) > 0) n = n * -1.0;
+          const Vec3 n = Shading::facingNormal(mesh, h.prim, d);
           const Vec3 p = cam.eye + d * h.t;
-          const Vec3 toL = light - p;
+          const Vec3 toL = sh.light - p;
           const double distL = norm(toL);
           const Vec3 l = toL * (1.0 / distL);
           double diffuse = std::max(0.0, dot(n, l));
           if (opt.shadows && diffuse > 0) {
             ++shadowRays;
-            if (tracer.any(p + n * eps, l, 0.0, distL, &ps)) diffuse = 0;
+            if (tracer.any(p + n * sh.eps, l, 0.0, distL, &ps)) diffuse = 0;
           }
-          const double s = opt.ambient + (1 - opt.ambient) * diffuse;
-          c = Vec3(opt.albedo.x * s, opt.albedo.y * s, opt.albedo.z * s);
+          c = Shading::colour(opt, diffuse);
           r.depth[pix] = static_cast<float>(h.t);
           r.hitPrim[pix] = h.prim;
         }
-        for (int k = 0; k < 3; ++k)
-          r.rgb[pix * 3 + k] = static_cast<uint8_t>(std::min(255.0, std::max(0.0, c[k] * 255.0 + 0.5)));
+        Shading::store(r, pix, c);
         r.nodeVisits[pix] = static_cast<uint32_t>(ps.nodeVisits);
         r.primTests[pix] = static_cast<uint32_t>(ps.primTests);
         local.add(ps);
