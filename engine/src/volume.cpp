@@ -350,14 +350,6 @@ struct FloatFetch {
   }
 };
 
-template <typename R>
-inline R lerp8(const float c[8], R fx, R fy, R fz) {
-  const R x00 = c[0] + fx * (c[1] - c[0]), x10 = c[2] + fx * (c[3] - c[2]);
-  const R x01 = c[4] + fx * (c[5] - c[4]), x11 = c[6] + fx * (c[7] - c[6]);
-  const R y0 = x00 + fy * (x10 - x00), y1 = x01 + fy * (x11 - x01);
-  return y0 + fz * (y1 - y0);
-}
-
 /// Front-to-back accumulator: premultiplied colour and opacity.
 template <typename R>
 struct Acc {
@@ -443,7 +435,7 @@ inline double exitT(const double o[3], const double d[3], const double lo[3], co
 template <typename R, bool Shade>
 inline bool composite(const Frame& F, const float cc[8], R fx, R fy, R fz, const double viewDir[3], Acc<R>& acc,
                       float offset) {
-  const float v = float(lerp8<R>(cc, fx, fy, fz) + R(offset));
+  const float v = float(trilinear<R>(cc, fx, fy, fz) + R(offset));
   const float* e = F.table + 4 * tableIndex(F, v);
   if (Shade) {
     if (!(e[3] > 0.f)) return false;
@@ -702,7 +694,7 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
       float cc[8];
       if (vol.cellCorners(c[0], c[1], c[2], cc)) {
         ++samples;
-        const float v = lerp8<float>(cc, float(f[0]), float(f[1]), float(f[2]));  // offset is in cc
+        const float v = trilinear<float>(cc, float(f[0]), float(f[1]), float(f[2]));  // offset is in cc
         const float* e = table + 4 * std::min(std::max(static_cast<int>((v - F.tlo) * F.tscale + 0.5f), 0), tlast);
         if (Shade) {
           if (e[3] > 0.f) shadeSample<float>(F, cc, float(f[0]), float(f[1]), float(f[2]), e, viewDir, acc);
