@@ -581,6 +581,91 @@ inline void apronCorners(const uint16_t* p, __m128& lo, __m128& hi) {
   hi = _mm_cvtepi32_ps(_mm_unpacklo_epi16(v1, z));
 }
 
+/// Per-ray constants of the UInt8/UInt16 float marchers: sample k sits at P0 + k S, each axis in
+/// float (a multiply, then an add: never fused, so every marcher and the OpenCL kernel agree).
+struct ApronRay {
+  float P0s[3], Ss[3];
+  __m128 P0, S;
+  ApronRay(const Frame& F, const double o[3], const double d[3], double t0) {
+    for (int a = 0; a < 3; ++a) {
+      P0s[a] = float(o[a] + d[a] * t0);
+      Ss[a] = float(d[a] * F.dt);
+    }
+    P0 = _mm_setr_ps(P0s[0], P0s[1], P0s[2], 0.f);
+    S = _mm_setr_ps(Ss[0], Ss[1], Ss[2], 0.f);
+  }
+  __m128 at(float kf) const { return _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(kf), S)); }
+};
+
+/// One step of the apron walk at sample k: looks up the brick holding it (clamped into the grid).
+/// True when that brick is stored and visible (`fetch` has entered it; its first cell is returned
+/// in o). Otherwise the ray is in an empty node (with skipping: the brick's coarsest empty
+/// ancestor; without: the absent brick) and k moves to the last sample at or before the node's
+/// exit (floor, as march(); at least k + 1).
+template <typename T, bool Skip>
+inline bool apronEnter(const Frame& F, const ApronRay& ray, int levels, int64_t kEnd, ApronFetch<T>& fetch,
+                       int64_t& k, uint64_t& skips, int o[3]) {
+  const BlockSparseVolume& vol = *F.vol;
+  alignas(16) float p[4];
+  _mm_store_ps(p, ray.at(float(k)));
+  int cell[3];
+  for (int a = 0; a < 3; ++a) {
+    double f;
+    cell[a] = clampCell(double(p[a]), F.n[a], f);
+  }
+  const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
+  int empty = -1;
+  if (Skip && !vol.nodeVisible(0, bi, bj, bk)) {
+    empty = 0;
+    while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
+      ++empty;
+  } else if (!fetch.enter(bi, bj, bk)) {
+    empty = 0;
+  }
+  if (empty < 0) {
+    o[0] = bi << LOG2DIM;
+    o[1] = bj << LOG2DIM;
+    o[2] = bk << LOG2DIM;
+    return true;
+  }
+  const double edge = double(DIM << empty);
+  const int node[3] = {bi >> empty, bj >> empty, bk >> empty};
+  double kx = std::numeric_limits<double>::infinity();
+  for (int a = 0; a < 3; ++a) {
+    const double lo = node[a] * edge, s = double(ray.Ss[a]);
+    if (s > 0) kx = std::min(kx, (lo + edge - double(ray.P0s[a])) / s);
+    else if (s < 0) kx = std::min(kx, (lo - double(ray.P0s[a])) / s);
+  }
+  const double kf = std::floor(kx);
+  const int64_t kLast = kf >= double(kEnd) ? kEnd : std::max<int64_t>(k, static_cast<int64_t>(kf));
+  if (Skip) ++skips;
+  k = std::max(k + 1, kLast);
+  return false;
+}
+
+/// Sample k where it needs clamping (the grid's far face, or outside it by round-off): the
+/// general path (clampCell, cellCorners, x-first interpolation). True when the ray is opaque.
+template <bool Shade>
+inline bool apronClampedSample(const Frame& F, const ApronRay& ray, int64_t k, const double viewDir[3], AccT& acc,
+                               uint64_t& samples) {
+  alignas(16) float p[4];
+  _mm_store_ps(p, ray.at(float(k)));
+  double f[3];
+  int c[3];
+  for (int a = 0; a < 3; ++a) c[a] = clampCell(double(p[a]), F.n[a], f[a]);
+  float cc[8];
+  if (!F.vol->cellCorners(c[0], c[1], c[2], cc)) return false;
+  ++samples;
+  const float v = trilinear<float>(cc, float(f[0]), float(f[1]), float(f[2]));  // offset is in cc
+  const float* e = F.table + 4 * std::min(std::max(static_cast<int>((v - F.tlo) * F.tscale + 0.5f), 0), F.tlast);
+  if (Shade) {
+    if (e[3] > 0.f) shadeSample<float>(F, cc, float(f[0]), float(f[1]), float(f[2]), e, viewDir, acc);
+  } else {
+    acc.add(e);
+  }
+  return acc.T <= 1.f - F.threshold;
+}
+
 /// The UInt8/UInt16 marcher (float accumulation): positions P0 + k S in float, 4-wide (x, y, z in
 /// one register: one multiply-add, one conversion, one bounds test per sample), corners fetched
 /// and interpolated as vectors, branch-free classification. Same walk as march(): brick lookup
@@ -589,64 +674,30 @@ inline void apronCorners(const uint16_t* p, __m128& lo, __m128& hi) {
 template <typename T, bool Skip, bool Shade>
 void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const double d[3], double t0, int64_t kEnd,
                 const double viewDir[3], float out[4], uint64_t& samplesOut, uint64_t& skipsOut) {
-  const BlockSparseVolume& vol = *F.vol;
   uint64_t samples = 0, skips = 0;
   AccT acc;
   const float Tmin = 1.f - F.threshold;  // stop when the transmittance falls to this
-  const float P0s[3] = {float(o[0] + d[0] * t0), float(o[1] + d[1] * t0), float(o[2] + d[2] * t0)};
-  const float Ss[3] = {float(d[0] * F.dt), float(d[1] * F.dt), float(d[2] * F.dt)};
-  const __m128 P0 = _mm_setr_ps(P0s[0], P0s[1], P0s[2], 0.f), S = _mm_setr_ps(Ss[0], Ss[1], Ss[2], 0.f);
+  const ApronRay ray(F, o, d, t0);
   const __m128 zero = _mm_setzero_ps();
   const __m128 tlo = _mm_set_ss(F.tlo), tscale = _mm_set_ss(F.tscale), half = _mm_set_ss(0.5f);
   const int tlast = F.tlast;
   const float* const table = F.table;
   const float offset = F.offset;
-  const int levels = vol.levelCount();
+  const int levels = F.vol->levelCount();
   constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
   int64_t k = 0;
   while (k <= kEnd) {
-    alignas(16) float p[4];
-    _mm_store_ps(p, _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(float(k)), S)));
-    int cell[3];
-    for (int a = 0; a < 3; ++a) {
-      double f;
-      cell[a] = clampCell(double(p[a]), F.n[a], f);
-    }
-    const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
-    int empty = -1;
-    if (Skip && !vol.nodeVisible(0, bi, bj, bk)) {
-      empty = 0;
-      while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
-        ++empty;
-    } else if (!fetch.enter(bi, bj, bk)) {
-      empty = 0;
-    }
-    if (empty >= 0) {
-      // Leave the node at the last sample at or before its exit (floor, as march()).
-      const double edge = double(DIM << empty);
-      const int node[3] = {bi >> empty, bj >> empty, bk >> empty};
-      double kx = std::numeric_limits<double>::infinity();
-      for (int a = 0; a < 3; ++a) {
-        const double lo = node[a] * edge, s = double(Ss[a]);
-        if (s > 0) kx = std::min(kx, (lo + edge - double(P0s[a])) / s);
-        else if (s < 0) kx = std::min(kx, (lo - double(P0s[a])) / s);
-      }
-      const double kf = std::floor(kx);
-      const int64_t kLast = kf >= double(kEnd) ? kEnd : std::max<int64_t>(k, static_cast<int64_t>(kf));
-      if (Skip) ++skips;
-      k = std::max(k + 1, kLast);
-      continue;
-    }
-    const int ox = bi << LOG2DIM, oy = bj << LOG2DIM, oz = bk << LOG2DIM;
-    const __m128i org = _mm_setr_epi32(ox, oy, oz, 0);
-    const __m128i lim = _mm_setr_epi32(std::min(DIM - 1, F.n[0] - 2 - ox), std::min(DIM - 1, F.n[1] - 2 - oy),
-                                       std::min(DIM - 1, F.n[2] - 2 - oz), 0);
+    int bo[3];
+    if (!apronEnter<T, Skip>(F, ray, levels, kEnd, fetch, k, skips, bo)) continue;
+    const __m128i org = _mm_setr_epi32(bo[0], bo[1], bo[2], 0);
+    const __m128i lim = _mm_setr_epi32(std::min(DIM - 1, F.n[0] - 2 - bo[0]), std::min(DIM - 1, F.n[1] - 2 - bo[1]),
+                                       std::min(DIM - 1, F.n[2] - 2 - bo[2]), 0);
     const __m128i zeroi = _mm_setzero_si128();
     const int64_t kStart = k;
     bool done = false;
     float kf = float(k);
     for (; k <= kEnd; ++k, kf += 1.f) {
-      const __m128 pos = _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(kf), S));
+      const __m128 pos = ray.at(kf);
       const __m128i ip = _mm_cvttps_epi32(pos);
       const __m128i l = _mm_sub_epi32(ip, org);
       const __m128i out4 = _mm_or_si128(_mm_cmpgt_epi32(l, lim), _mm_cmpgt_epi32(zeroi, l));
@@ -686,23 +737,7 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
     }
     if (done) break;
     if (k == kStart) {
-      // The sample needs clamping (the grid's far face, or outside it by round-off).
-      _mm_store_ps(p, _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(float(k)), S)));
-      double f[3];
-      int c[3];
-      for (int a = 0; a < 3; ++a) c[a] = clampCell(double(p[a]), F.n[a], f[a]);
-      float cc[8];
-      if (vol.cellCorners(c[0], c[1], c[2], cc)) {
-        ++samples;
-        const float v = trilinear<float>(cc, float(f[0]), float(f[1]), float(f[2]));  // offset is in cc
-        const float* e = table + 4 * std::min(std::max(static_cast<int>((v - F.tlo) * F.tscale + 0.5f), 0), tlast);
-        if (Shade) {
-          if (e[3] > 0.f) shadeSample<float>(F, cc, float(f[0]), float(f[1]), float(f[2]), e, viewDir, acc);
-        } else {
-          acc.add(e);
-        }
-        if (acc.T <= Tmin) break;
-      }
+      if (apronClampedSample<Shade>(F, ray, k, viewDir, acc, samples)) break;
       ++k;
     }
   }
@@ -710,6 +745,7 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
   skipsOut += skips;
   _mm_storeu_ps(out, acc.c);
 }
+
 #endif
 
 /// march() for every storage; the SSE2 marcher for UInt8/UInt16 in float.
