@@ -20,6 +20,7 @@
 
 #include "mtree/builder.h"
 #include "mtree/cells.h"
+#include "mtree/segment_filter.h"
 #include "mtree/opencl.h"
 
 #include <omp.h>
@@ -508,6 +509,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   }
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
+  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), tol);
   double best = VTK_DOUBLE_MAX, tt, xx[3], pc[3];
   int sid;
   vtkIdType bestId = -1;
@@ -533,6 +535,12 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
         double t0 = 0.0, t1 = std::min(best, 1.0);
         if (!mtree::rayBox(o, d, box, t0, t1))
+        {
+          continue;
+        }
+        // Then the cell's points: most cells whose box the segment crosses are proved missed
+        // (or hit only beyond the best t so far) without VTK (segment_filter.h).
+        if (!mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), std::min(best, 1.0)))
         {
           continue;
         }
@@ -586,13 +594,15 @@ int vtkMatrixTreeLocator::IntersectWithLine(
   std::unordered_set<vtkIdType> seen;
   vtkNew<vtkGenericCell> cell;
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
+  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), 0.0);
   in.Tree.traverseRay(
     o, d, 0.0, 1.0,
     [&](const uint32_t* ids, uint32_t count, double, double) {
       for (uint32_t k = 0; k < count; ++k)
       {
         const vtkIdType id = ids[k];
-        if (!seen.insert(id).second)
+        if (!seen.insert(id).second ||
+          !mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), 1.0))
         {
           continue;
         }
