@@ -150,4 +150,79 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
   return true;
 }
 
+/// Where vtkTetra::IntersectWithLine(p1, p2, tol = 0, ...) reports its hit, when that is
+/// certain from the engine's copy of the cell. VTK's answer for a tetrahedron is the smallest t in
+/// [0, 1] at which the segment crosses one of its four triangles. With barycentric coordinates
+/// lambda_i affine along the line, the line is inside for t in [te, tx]; the first hit is te if
+/// 0 < te <= 1, else tx if te <= 0 < tx <= 1. The answer is certain when both crossings lie
+/// inside their faces by a margin (every other lambda >= m: the line then passes no edge or
+/// vertex closely, so none of VTK's four triangle tests is near a decision), neither crossing is
+/// near an end of the segment, and the tetrahedron is not a sliver; m covers the round-off of
+/// this computation and of VTK's. Returns false when not certain (VTK must decide) or when the
+/// segment misses: misses are the rejection test's business. On true, t is the hit's parameter
+/// (equal to VTK's up to round-off).
+inline bool tetraFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+  if (!f.valid || f.tol != 0 || cells.type(c) != kTetra || cells.numCellPoints(c) != 4) return false;
+  const Vec3 v0 = cells.cellPoint(c, 0), v1 = cells.cellPoint(c, 1), v2 = cells.cellPoint(c, 2),
+             v3 = cells.cellPoint(c, 3);
+  const Vec3 a = v1 - v0, b = v2 - v0, e = v3 - v0;
+  const Vec3 be = cross(b, e);
+  const double det = dot(a, be);  // 6 x signed volume
+  const double L = std::sqrt(std::max({dot(a, a), dot(b, b), dot(e, e), dot(b - a, b - a), dot(e - a, e - a),
+                                       dot(e - b, e - b)}));
+  if (!(std::fabs(det) > 1e-4 * L * L * L)) return false;  // sliver or flat: VTK decides
+  const double inv = 1.0 / det;
+  // Barycentric coordinates (l0, l1, l2, l3) of p1 and their change along d.
+  auto bary = [&](Vec3 r, double l[4]) {
+    l[1] = dot(r, be) * inv;
+    l[2] = dot(a, cross(r, e)) * inv;
+    l[3] = dot(a, cross(b, r)) * inv;
+  };
+  const Vec3 r1 = f.p1 - v0;
+  double l1[4], dl[4];
+  bary(r1, l1);
+  l1[0] = 1.0 - l1[1] - l1[2] - l1[3];
+  bary(f.d, dl);  // linear part only: d is a direction
+  dl[0] = -(dl[1] + dl[2] + dl[3]);
+  // Round-off of these coordinates (and of VTK's) grows with the distance of p1 and p2 from the
+  // cell, and with the coordinates' magnitude against the cell's size.
+  const double far = (norm(r1) + norm(r1 + f.d)) / L;
+  const double vmag = std::max({std::fabs(v0.x), std::fabs(v0.y), std::fabs(v0.z)});
+  const double m = 1e-6 + 1e-9 * far + 1024 * std::numeric_limits<double>::epsilon() * std::max(f.mag, vmag) / L;
+  // VTK's t carries an absolute error of about eps x magnitude / |d|: where that could reorder
+  // two hits by more than the 1e-9 the locator treats as a tie, VTK must decide.
+  if (1024 * std::numeric_limits<double>::epsilon() * std::max(f.mag, vmag) * f.invLen > 1e-10) return false;
+  double te = -std::numeric_limits<double>::infinity(), tx = std::numeric_limits<double>::infinity();
+  int ie = -1, ix = -1;
+  for (int i = 0; i < 4; ++i) {
+    if (dl[i] == 0) {
+      if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
+      continue;
+    }
+    const double ti = -l1[i] / dl[i];
+    if (dl[i] > 0) {
+      if (ti > te) te = ti, ie = i;
+    } else if (ti < tx) {
+      tx = ti, ix = i;
+    }
+  }
+  if (ie < 0 || ix < 0 || !(te < tx)) return false;
+  // Both crossings well inside their faces, and neither near t = 0 or t = 1 (in barycentric
+  // terms: the face's coordinate at p1 and at p2 is not near 0).
+  for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
+    for (int j = 0; j < 4; ++j)
+      if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
+    if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
+  }
+  if (te > 0 && te <= 1) {
+    t = te;
+    return true;
+  }
+  if (te <= 0 && tx > 0 && tx <= 1) {
+    t = tx;
+    return true;
+  }
+  return false;  // no crossing in [0, 1]: a miss, left to the rejection test and VTK
+}
+
 }  // namespace mtree
