@@ -20,6 +20,7 @@
 
 #include "mtree/builder.h"
 #include "mtree/cells.h"
+#include "mtree/segment_filter.h"
 #include "mtree/opencl.h"
 
 #include <omp.h>
@@ -508,47 +509,94 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   }
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
+  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), tol);
   double best = VTK_DOUBLE_MAX, tt, xx[3], pc[3];
   int sid;
   vtkIdType bestId = -1;
-  // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
-  vtkIdType mailbox[64];
-  std::fill(mailbox, mailbox + 64, -1);
-  in.Tree.traverseRay(
-    o, d, 0.0, 1.0,
-    [&](const uint32_t* ids, uint32_t count, double, double tExit) {
-      for (uint32_t k = 0; k < count; ++k)
+  // Tetrahedra whose hit is certain from the engine's copy (tetraFirstHitIfCertain, tol 0) are
+  // not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
+  // the end, for the exact t, x and pcoords. Should VTK not confirm it (it never did in the
+  // tests), the query is run again with every cell going to VTK.
+  for (int pass = 0; pass < 2; ++pass)
+  {
+    const bool deferTets = pass == 0 && tol == 0.0;
+    double deferredT = VTK_DOUBLE_MAX;
+    vtkIdType deferredId = -1;
+    best = VTK_DOUBLE_MAX;
+    bestId = -1;
+    // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
+    vtkIdType mailbox[64];
+    std::fill(mailbox, mailbox + 64, -1);
+    in.Tree.traverseRay(
+      o, d, 0.0, 1.0,
+      [&](const uint32_t* ids, uint32_t count, double, double tExit) {
+        for (uint32_t k = 0; k < count; ++k)
+        {
+          const vtkIdType id = ids[k];
+          vtkIdType& slot = mailbox[id & 63];
+          if (slot == id)
+          {
+            continue;
+          }
+          slot = id;
+          const double bound = std::min({ best, deferredT, 1.0 });
+          // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
+          const float* cb = in.Cells.cellBox(id);
+          mtree::Box box;
+          box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
+          box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
+          double t0 = 0.0, t1 = bound;
+          if (!mtree::rayBox(o, d, box, t0, t1))
+          {
+            continue;
+          }
+          // Then the cell's points: most cells whose box the segment crosses are proved missed
+          // (or hit only beyond the best t so far) without VTK (segment_filter.h).
+          if (!mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), bound))
+          {
+            continue;
+          }
+          double tc;
+          if (deferTets && mtree::tetraFirstHitIfCertain(frame, in.Cells, static_cast<size_t>(id), tc))
+          {
+            if (tc < deferredT)
+            {
+              deferredT = tc;
+              deferredId = id;
+            }
+            continue;
+          }
+          this->DataSet->GetCell(id, cell);
+          if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
+          {
+            best = tt;
+            bestId = id;
+            std::copy(xx, xx + 3, x);
+            std::copy(pc, pc + 3, pcoords);
+            subId = sid;
+          }
+        }
+        return (bestId >= 0 || deferredId >= 0) && std::min(best, deferredT) <= tExit;
+      },
+      nullptr);
+    if (deferredId < 0 || (bestId >= 0 && best <= deferredT))
+    {
+      break;
+    }
+    this->DataSet->GetCell(deferredId, cell);
+    if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
+    {
+      if (bestId < 0 || tt < best)
       {
-        const vtkIdType id = ids[k];
-        vtkIdType& slot = mailbox[id & 63];
-        if (slot == id)
-        {
-          continue;
-        }
-        slot = id;
-        // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
-        const float* cb = in.Cells.cellBox(id);
-        mtree::Box box;
-        box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
-        box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
-        double t0 = 0.0, t1 = std::min(best, 1.0);
-        if (!mtree::rayBox(o, d, box, t0, t1))
-        {
-          continue;
-        }
-        this->DataSet->GetCell(id, cell);
-        if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
-        {
-          best = tt;
-          bestId = id;
-          std::copy(xx, xx + 3, x);
-          std::copy(pc, pc + 3, pcoords);
-          subId = sid;
-        }
+        best = tt;
+        bestId = deferredId;
+        std::copy(xx, xx + 3, x);
+        std::copy(pc, pc + 3, pcoords);
+        subId = sid;
       }
-      return bestId >= 0 && best <= tExit;
-    },
-    nullptr);
+      break;
+    }
+  }
   if (bestId < 0)
   {
     return 0;
@@ -586,13 +634,15 @@ int vtkMatrixTreeLocator::IntersectWithLine(
   std::unordered_set<vtkIdType> seen;
   vtkNew<vtkGenericCell> cell;
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
+  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), 0.0);
   in.Tree.traverseRay(
     o, d, 0.0, 1.0,
     [&](const uint32_t* ids, uint32_t count, double, double) {
       for (uint32_t k = 0; k < count; ++k)
       {
         const vtkIdType id = ids[k];
-        if (!seen.insert(id).second)
+        if (!seen.insert(id).second ||
+          !mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), 1.0))
         {
           continue;
         }

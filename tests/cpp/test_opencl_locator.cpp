@@ -35,68 +35,14 @@
 #include <vector>
 
 #include "opencl_test_util.h"
+#include "vtk_grid_util.h"
 #include "vtk_test_util.h"
 #include "test_util.h"
 
 namespace {
 
 using mtest::ErrorCatcher;
-
-/// The volume cells of an SU2 mesh (NDIME, NELEM lines "type ids... index", NPOIN lines
-/// "x y z [index]"; markers skipped). SU2 element types are VTK's cell type codes.
-vtkSmartPointer<vtkUnstructuredGrid> readSu2(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return nullptr;
-  auto grid = vtkSmartPointer<vtkUnstructuredGrid>::New();
-  vtkNew<vtkPoints> pts;
-  pts->SetDataTypeToDouble();
-  std::vector<int> types;
-  std::vector<std::vector<vtkIdType>> cells;
-  std::string line;
-  int dim = 3;
-  while (std::getline(in, line)) {
-    if (line.rfind("NDIME=", 0) == 0) {
-      dim = std::stoi(line.substr(6));
-    } else if (line.rfind("NELEM=", 0) == 0) {
-      const long n = std::stol(line.substr(6));
-      for (long e = 0; e < n && std::getline(in, line); ++e) {
-        std::istringstream ls(line);
-        int type = 0;
-        ls >> type;
-        const int np = type == 10 ? 4 : type == 12 ? 8 : type == 13 ? 6 : type == 14 ? 5 : type == 5 ? 3 : 4;
-        std::vector<vtkIdType> ids(np);
-        for (auto& id : ids) ls >> id;
-        types.push_back(type);
-        cells.push_back(ids);
-      }
-    } else if (line.rfind("NPOIN=", 0) == 0) {
-      const long n = std::stol(line.substr(6));
-      for (long i = 0; i < n && std::getline(in, line); ++i) {
-        std::istringstream ls(line);
-        double x[3] = {0, 0, 0};
-        for (int a = 0; a < dim; ++a) ls >> x[a];
-        pts->InsertNextPoint(x);
-      }
-    } else if (line.rfind("NMARK=", 0) == 0) {
-      break;
-    }
-  }
-  grid->SetPoints(pts);
-  grid->Allocate(static_cast<vtkIdType>(cells.size()));
-  for (size_t c = 0; c < cells.size(); ++c)
-    grid->InsertNextCell(types[c], static_cast<vtkIdType>(cells[c].size()), cells[c].data());
-  return grid;
-}
-
-vtkSmartPointer<vtkUnstructuredGrid> readGrid(const std::string& rel) {
-  const std::string path = mtest::dataPath(rel);
-  if (rel.size() > 4 && rel.compare(rel.size() - 4, 4, ".su2") == 0) return readSu2(path);
-  vtkNew<vtkXMLUnstructuredGridReader> r;
-  r->SetFileName(path.c_str());
-  r->Update();
-  if (r->GetOutput()->GetNumberOfCells() == 0) return nullptr;
-  return vtkSmartPointer<vtkUnstructuredGrid>(r->GetOutput());
-}
+using mtest::readGrid;
 
 /// 10^5 seeded points in the bounds grown by 5% per side, then the hard cases: for seeded
 /// cells, the centroid of a face (a shared face: two cells contain it), a vertex (many do) and,

@@ -1,0 +1,228 @@
+// A conservative segment-versus-cell rejection test, run before a cell is handed to VTK's own
+// vtkCell::IntersectWithLine. The locator's ray queries must return VTK's answers (hit cell, t,
+// x, pcoords), so VTK still decides every cell this test lets through; the test only proves,
+// from the cell's points alone, that VTK cannot report a hit with t <= tMax, and so saves the
+// GetCell + IntersectWithLine call (about 1 us for a tetrahedron) for most of the cells whose
+// bounding box the segment crosses.
+//
+// Why it is safe: every linear cell type (vertex to pyramid, polygons and strips included) lies
+// inside the convex hull of its points, and VTK reports a hit only where the segment passes within
+// its tolerance of the cell (absolute distance; per axis for a vertex, so up to sqrt(3) tol).
+// The test therefore inflates the hull by r = 2 tol + delta, where delta = 1e-3 of the cell's
+// extent plus a round-off term in the coordinates' magnitude; delta covers VTK's own round-off
+// and the relative tolerance vtkPolygon's point-in-polygon test applies. Two proofs of a miss:
+//   1. the ray frame: with u, w unit vectors perpendicular to the segment, the hull's projection
+//      onto u or w lies entirely on one side of the segment's line (further than r); or its
+//      projection onto the segment direction lies beyond tMax (or before t = 0) by more than r;
+//   2. tetrahedra: the segment clipped against the four inflated face planes (Cyrus-Beck) is
+//      empty on [0, tMax]. For a tetrahedron this is exact up to the inflation;
+//   3. triangles: both ends of the segment on [0, tMax] lie on one side of the triangle's plane,
+//      further than r; or, seen along the segment, its line passes outside an edge of the
+//      projected triangle by more than r.
+// Axis-aligned cells (voxels, the hexahedra of a brick grid) gain little: for them the bounding
+// box the caller tests first is already the hull, and only the tMax bound rejects more.
+// Types outside that list (quadratic and higher-order cells, polyhedra, whose curved faces can
+// leave the hull of their nodes) are never rejected.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "mtree/cells.h"
+#include "mtree/geometry.h"
+
+namespace mtree {
+
+/// The segment p1 -> p2 with its frame, set up once per query.
+struct SegmentFrame {
+  Vec3 p1, d;         // the segment is p1 + t d, t in [0, 1]
+  Vec3 u, w;          // unit vectors perpendicular to d (and to each other)
+  double invLen = 0;  // 1 / |d|
+  double invLen2 = 0; // 1 / |d|^2
+  double tol = 0;     // VTK's tolerance (a distance)
+  double mag = 0;     // largest coordinate magnitude of p1 and p2
+  bool valid = false; // false: zero-length or non-finite segment, or bad tol: nothing is rejected
+
+  SegmentFrame(Vec3 a, Vec3 b, double tolerance) : p1(a), d(b - a), tol(tolerance) {
+    const double len2 = dot(d, d);
+    if (!isFinite(a) || !isFinite(b) || !(len2 > 0) || !std::isfinite(len2) || !(tolerance >= 0) ||
+        !std::isfinite(tolerance))
+      return;
+    invLen2 = 1.0 / len2;
+    invLen = std::sqrt(invLen2);
+    // u: perpendicular to d and to the coordinate axis d is least aligned with.
+    const double ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);
+    const Vec3 e = (ax <= ay && ax <= az) ? Vec3(1, 0, 0) : (ay <= az ? Vec3(0, 1, 0) : Vec3(0, 0, 1));
+    u = normalized(cross(d, e));
+    w = normalized(cross(d * invLen, u));
+    mag = std::max({std::fabs(a.x), std::fabs(a.y), std::fabs(a.z), std::fabs(b.x), std::fabs(b.y), std::fabs(b.z)});
+    valid = isFinite(u) && isFinite(w);
+  }
+};
+
+/// Whether the cell's type lies inside the convex hull of its points (VTK's linear types).
+inline bool cellInsideHullOfPoints(uint8_t type) { return type >= kVertex && type <= kPyramid; }
+
+/// False only if vtkCell::IntersectWithLine(p1, p2, tol, t, ...) on cell c cannot return a hit
+/// with t <= tMax (see the header comment). True means "ask VTK".
+inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax) {
+  if (!f.valid || !cellInsideHullOfPoints(cells.type(c))) return true;
+  const int64_t n = cells.numCellPoints(c);
+  if (n <= 0) return true;
+  double amin = std::numeric_limits<double>::infinity(), amax = -amin;
+  double bmin = amin, bmax = amax, smin = amin, smax = amax;
+  Vec3 lo(amin, amin, amin), hi(amax, amax, amax);
+  double vmag = 0;
+  Vec3 tet[4];
+  double pa[4] = {0, 0, 0, 0}, pb[4] = {0, 0, 0, 0};  // the first points in the ray frame
+  for (int64_t k = 0; k < n; ++k) {
+    const Vec3 v = cells.cellPoint(c, k);
+    if (k < 4) tet[k] = v;
+    lo = vmin(lo, v);
+    hi = vmax(hi, v);
+    vmag = std::max({vmag, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+    const Vec3 q = v - f.p1;
+    const double a = dot(f.u, q), b = dot(f.w, q), s = dot(f.d, q) * f.invLen2;
+    if (k < 4) pa[k] = a, pb[k] = b;
+    amin = std::min(amin, a), amax = std::max(amax, a);
+    bmin = std::min(bmin, b), bmax = std::max(bmax, b);
+    smin = std::min(smin, s), smax = std::max(smax, s);
+  }
+  const Vec3 ext = hi - lo;
+  const double delta = 1e-3 * std::max({ext.x, ext.y, ext.z}) +
+                       64 * std::numeric_limits<double>::epsilon() * std::max(vmag, f.mag);
+  const double r = 2 * f.tol + delta;
+  if (!(std::isfinite(r))) return true;
+  if (amin > r || amax < -r || bmin > r || bmax < -r) return false;
+  const double rs = r * f.invLen;  // r in units of t
+  const double tHiLimit = std::min(tMax, 1.0);
+  if (smin - rs > tHiLimit || smax + rs < 0) return false;
+  if (cells.type(c) == kTriangle && n == 3) {
+    // Both ends on the same side of the triangle's plane, further than r: a miss.
+    const Vec3 nrm = cross(tet[1] - tet[0], tet[2] - tet[0]);
+    const double nn = norm(nrm);
+    if (!(nn > 0)) return true;
+    const double a = dot(nrm, f.p1 - tet[0]), b = a + dot(nrm, f.d) * tHiLimit, R = r * nn;
+    if ((a > R && b > R) || (a < -R && b < -R)) return false;
+    // Seen along the segment, the line is the origin of the (u, w) plane: outside the projected
+    // triangle's edge line by more than r is further than r from the triangle. A projection of
+    // (nearly) no area (the segment in the triangle's plane) is left to VTK.
+    const double area = (pa[1] - pa[0]) * (pb[2] - pb[0]) - (pb[1] - pb[0]) * (pa[2] - pa[0]);
+    const double e2max = std::max({(pa[1] - pa[0]) * (pa[1] - pa[0]) + (pb[1] - pb[0]) * (pb[1] - pb[0]),
+                                   (pa[2] - pa[1]) * (pa[2] - pa[1]) + (pb[2] - pb[1]) * (pb[2] - pb[1]),
+                                   (pa[0] - pa[2]) * (pa[0] - pa[2]) + (pb[0] - pb[2]) * (pb[0] - pb[2])});
+    if (!(std::fabs(area) > 1e-6 * e2max)) return true;
+    const double orient = area > 0 ? 1.0 : -1.0;
+    for (int e = 0; e < 3; ++e) {
+      const int i = e, j = (e + 1) % 3;
+      const double ex = pa[j] - pa[i], ey = pb[j] - pb[i];
+      // Signed distance of the origin to the edge line, positive inside.
+      const double len = std::sqrt(ex * ex + ey * ey);
+      const double inside = orient * (ex * (0 - pb[i]) - ey * (0 - pa[i]));
+      if (inside < -r * len) return false;
+    }
+    return true;
+  }
+  if (cells.type(c) != kTetra || n != 4) return true;
+  // Cyrus-Beck against the tetrahedron's four face planes, each pushed out by r.
+  static constexpr int kFace[4][4] = {{0, 1, 3, 2}, {1, 2, 3, 0}, {2, 0, 3, 1}, {0, 2, 1, 3}};  // 3 on the face, then the opposite
+  double tLo = 0, tHi = tHiLimit;
+  for (const auto& fv : kFace) {
+    const Vec3 o = tet[fv[0]];
+    Vec3 nrm = cross(tet[fv[1]] - o, tet[fv[2]] - o);
+    const double nn = norm(nrm);
+    const double side = dot(nrm, tet[fv[3]] - o);
+    // A flat (or nearly flat) tetrahedron has no reliable inside: keep the ray-frame verdict.
+    if (!(std::fabs(side) > 1e-9 * nn * std::max({ext.x, ext.y, ext.z}))) return true;
+    if (side > 0) nrm = nrm * -1.0;  // outward
+    const double A = dot(nrm, f.p1 - o) - r * nn;  // <= 0: p1 inside the pushed-out plane
+    const double B = dot(nrm, f.d);
+    if (B == 0) {
+      if (A > 0) return false;
+      continue;
+    }
+    const double t = -A / B;
+    if (B > 0) tHi = std::min(tHi, t);
+    else tLo = std::max(tLo, t);
+    if (tLo > tHi) return false;
+  }
+  return true;
+}
+
+/// Where vtkTetra::IntersectWithLine(p1, p2, tol = 0, ...) reports its hit, when that is
+/// certain from the engine's copy of the cell. VTK's answer for a tetrahedron is the smallest t in
+/// [0, 1] at which the segment crosses one of its four triangles. With barycentric coordinates
+/// lambda_i affine along the line, the line is inside for t in [te, tx]; the first hit is te if
+/// 0 < te <= 1, else tx if te <= 0 < tx <= 1. The answer is certain when both crossings lie
+/// inside their faces by a margin (every other lambda >= m: the line then passes no edge or
+/// vertex closely, so none of VTK's four triangle tests is near a decision), neither crossing is
+/// near an end of the segment, and the tetrahedron is not a sliver; m covers the round-off of
+/// this computation and of VTK's. Returns false when not certain (VTK must decide) or when the
+/// segment misses: misses are the rejection test's business. On true, t is the hit's parameter
+/// (equal to VTK's up to round-off).
+inline bool tetraFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+  if (!f.valid || f.tol != 0 || cells.type(c) != kTetra || cells.numCellPoints(c) != 4) return false;
+  const Vec3 v0 = cells.cellPoint(c, 0), v1 = cells.cellPoint(c, 1), v2 = cells.cellPoint(c, 2),
+             v3 = cells.cellPoint(c, 3);
+  const Vec3 a = v1 - v0, b = v2 - v0, e = v3 - v0;
+  const Vec3 be = cross(b, e);
+  const double det = dot(a, be);  // 6 x signed volume
+  const double L = std::sqrt(std::max({dot(a, a), dot(b, b), dot(e, e), dot(b - a, b - a), dot(e - a, e - a),
+                                       dot(e - b, e - b)}));
+  if (!(std::fabs(det) > 1e-4 * L * L * L)) return false;  // sliver or flat: VTK decides
+  const double inv = 1.0 / det;
+  // Barycentric coordinates (l0, l1, l2, l3) of p1 and their change along d.
+  auto bary = [&](Vec3 r, double l[4]) {
+    l[1] = dot(r, be) * inv;
+    l[2] = dot(a, cross(r, e)) * inv;
+    l[3] = dot(a, cross(b, r)) * inv;
+  };
+  const Vec3 r1 = f.p1 - v0;
+  double l1[4], dl[4];
+  bary(r1, l1);
+  l1[0] = 1.0 - l1[1] - l1[2] - l1[3];
+  bary(f.d, dl);  // linear part only: d is a direction
+  dl[0] = -(dl[1] + dl[2] + dl[3]);
+  // Round-off of these coordinates (and of VTK's) grows with the distance of p1 and p2 from the
+  // cell, and with the coordinates' magnitude against the cell's size.
+  const double far = (norm(r1) + norm(r1 + f.d)) / L;
+  const double vmag = std::max({std::fabs(v0.x), std::fabs(v0.y), std::fabs(v0.z)});
+  const double m = 1e-6 + 1e-9 * far + 1024 * std::numeric_limits<double>::epsilon() * std::max(f.mag, vmag) / L;
+  // VTK's t carries an absolute error of about eps x magnitude / |d|: where that could reorder
+  // two hits by more than the 1e-9 the locator treats as a tie, VTK must decide.
+  if (1024 * std::numeric_limits<double>::epsilon() * std::max(f.mag, vmag) * f.invLen > 1e-10) return false;
+  double te = -std::numeric_limits<double>::infinity(), tx = std::numeric_limits<double>::infinity();
+  int ie = -1, ix = -1;
+  for (int i = 0; i < 4; ++i) {
+    if (dl[i] == 0) {
+      if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
+      continue;
+    }
+    const double ti = -l1[i] / dl[i];
+    if (dl[i] > 0) {
+      if (ti > te) te = ti, ie = i;
+    } else if (ti < tx) {
+      tx = ti, ix = i;
+    }
+  }
+  if (ie < 0 || ix < 0 || !(te < tx)) return false;
+  // Both crossings well inside their faces, and neither near t = 0 or t = 1 (in barycentric
+  // terms: the face's coordinate at p1 and at p2 is not near 0).
+  for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
+    for (int j = 0; j < 4; ++j)
+      if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
+    if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
+  }
+  if (te > 0 && te <= 1) {
+    t = te;
+    return true;
+  }
+  if (te <= 0 && tx > 0 && tx <= 1) {
+    t = tx;
+    return true;
+  }
+  return false;  // no crossing in [0, 1]: a miss, left to the rejection test and VTK
+}
+
+}  // namespace mtree
