@@ -98,14 +98,4 @@ NodeRef MatrixTree::leafFindTopDown(Vec3 p) const {
   return r;
 }
 
-Box MatrixTree::nodeBox(int level, const int c[3]) const {
-  Box b;
-  const Vec3 cs = cellSize_[level];
-  for (int a = 0; a < 3; ++a) {
-    b.lo[a] = root_.lo[a] + c[a] * cs[a];
-    b.hi[a] = root_.lo[a] + (c[a] + 1) * cs[a];
-  }
-  return b;
-}
-
 }  // namespace mtree

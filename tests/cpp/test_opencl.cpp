@@ -29,41 +29,10 @@ using mtree::Vec3;
 namespace ocl = mtree::ocl;
 
 
-/// Asserts that two trees are the same, array for array.
+/// Asserts that the CPU and the device trees are the same, array for array, and that the
+/// pointer matrices the device computed are the host copy's.
 void expectSameTree(const MatrixTree& cpu, const MatrixTree& gpu, const ocl::Builder* b, const std::string& what) {
-  SCOPED_TRACE(what);
-  ASSERT_EQ(cpu.empty(), gpu.empty());
-  ASSERT_EQ(cpu.height(), gpu.height());
-  ASSERT_EQ(cpu.kind(), gpu.kind());
-  ASSERT_EQ(cpu.blockEdge(), gpu.blockEdge());
-  if (cpu.empty()) return;
-  for (int a = 0; a < 3; ++a) {
-    EXPECT_EQ(cpu.rootBox().lo[a], gpu.rootBox().lo[a]);
-    EXPECT_EQ(cpu.rootBox().hi[a], gpu.rootBox().hi[a]);
-  }
-  const int H = cpu.height();
-  for (int l = 0; l <= H; ++l) {
-    SCOPED_TRACE("level " + std::to_string(l));
-    for (int a = 0; a < 3; ++a) ASSERT_EQ(cpu.logDim(l, a), gpu.logDim(l, a));
-    const auto& cp = l == H ? cpu.leafLevel().pointers() : cpu.innerLevel(l).pointers();
-    const auto& gp = l == H ? gpu.leafLevel().pointers() : gpu.innerLevel(l).pointers();
-    ASSERT_EQ(cpu.levelBlocks(l), gpu.levelBlocks(l));
-    ASSERT_TRUE(cp == gp) << "pointer matrices differ";
-    if (b && !b->devicePointers().empty()) {
-      ASSERT_TRUE(b->devicePointers()[l] == cp) << "device pointer matrix differs";
-    }
-    if (l < H) {
-      ASSERT_TRUE(cpu.innerLevel(l).data() == gpu.innerLevel(l).data()) << "existence bytes differ";
-    } else {
-      const auto& cd = cpu.leafLevel().data();
-      const auto& gd = gpu.leafLevel().data();
-      ASSERT_EQ(cd.size(), gd.size());
-      size_t bad = 0;
-      for (size_t i = 0; i < cd.size(); ++i) bad += cd[i].begin != gd[i].begin || cd[i].end != gd[i].end;
-      ASSERT_EQ(bad, 0u) << "leaf ranges differ";
-    }
-  }
-  ASSERT_TRUE(cpu.primitiveIndices() == gpu.primitiveIndices()) << "triangle lists differ";
+  mtest::expectSameTree(cpu, gpu, what, b && !b->devicePointers().empty() ? &b->devicePointers() : nullptr);
 }
 
 class OpenCLMesh : public ::testing::TestWithParam<std::string> {};

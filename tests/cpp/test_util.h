@@ -231,6 +231,47 @@ inline mtree::MatrixTree buildTree(const mtree::TriangleMesh& mesh, mtree::Build
   return tree;
 }
 
+/// Asserts that two trees are the same, array for array: height, kind, block edge, root box,
+/// every level's shape, pointer matrix and blocks (existence bytes; leaf ranges at the bottom)
+/// and the primitive order. `pointers`, if given, must equal the pointer matrix of every level
+/// of `a` as well (the OpenCL builder's own pointer matrices).
+inline void expectSameTree(const mtree::MatrixTree& a, const mtree::MatrixTree& b, const std::string& what,
+                           const std::vector<std::vector<uint32_t>>* pointers = nullptr) {
+  SCOPED_TRACE(what);
+  ASSERT_EQ(a.empty(), b.empty());
+  ASSERT_EQ(a.height(), b.height());
+  ASSERT_EQ(a.kind(), b.kind());
+  ASSERT_EQ(a.blockEdge(), b.blockEdge());
+  if (a.empty()) return;
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(a.rootBox().lo[k], b.rootBox().lo[k]);
+    EXPECT_EQ(a.rootBox().hi[k], b.rootBox().hi[k]);
+  }
+  const int H = a.height();
+  for (int l = 0; l <= H; ++l) {
+    SCOPED_TRACE("level " + std::to_string(l));
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(a.logDim(l, k), b.logDim(l, k));
+    const auto& ap = l == H ? a.leafLevel().pointers() : a.innerLevel(l).pointers();
+    const auto& bp = l == H ? b.leafLevel().pointers() : b.innerLevel(l).pointers();
+    ASSERT_EQ(a.levelBlocks(l), b.levelBlocks(l));
+    ASSERT_TRUE(ap == bp) << "pointer matrices differ";
+    if (pointers) {
+      ASSERT_TRUE((*pointers)[l] == ap) << "device pointer matrix differs";
+    }
+    if (l < H) {
+      ASSERT_TRUE(a.innerLevel(l).data() == b.innerLevel(l).data()) << "existence bytes differ";
+    } else {
+      const auto& ad = a.leafLevel().data();
+      const auto& bd = b.leafLevel().data();
+      ASSERT_EQ(ad.size(), bd.size());
+      size_t bad = 0;
+      for (size_t i = 0; i < ad.size(); ++i) bad += ad[i].begin != bd[i].begin || ad[i].end != bd[i].end;
+      ASSERT_EQ(bad, 0u) << "leaf ranges differ";
+    }
+  }
+  ASSERT_TRUE(a.primitiveIndices() == b.primitiveIndices()) << "primitive lists differ";
+}
+
 inline mtree::BuildOptions options(mtree::TreeKind kind, int height = 0, int blockEdge = 8, int threads = 0) {
   mtree::BuildOptions o;
   o.kind = kind;

@@ -3,22 +3,36 @@
 //   setup       root box, automatic height, level shapes (the one serial step, paper step 1)
 //   count+mark  per primitive: count overlapped bottom-level nodes, mark their blocks (step 2)
 //   alloc       exclusive scan of the block marks, block pointers set (steps 3-4)
+// then, with BuildSort::Radix (the paper's; the default):
 //   scan        exclusive scan of the per-primitive counts (step 5)
 //   pairs       write (node, primitive) pairs at the scanned offsets, no atomics (step 6)
 //   sort        stable radix sort of the pairs by node (step 7)
 //   offsets     leaf ranges from neighbouring keys in the sorted array (step 8)
+//   refdata     only with per-reference data: a pass over the leaves, one call per reference
+// or with BuildSort::Counting (the leaf storage is dense after alloc):
+//   leaf counts references per leaf storage entry (atomic increments with several threads)
+//   leaf scan   exclusive scan over the leaf storage; leaf ranges from it
+//   scatter     each reference's primitive id (and its data) at its leaf's next slot
+//   leaf order  with several threads only: each leaf's ids sorted ascending
+// and in both
 //   propagate   existence up to the root, level by level (step 9)
-// The result depends only on the input, never on the thread count: every parallel step writes
-// to positions fixed by a scan, and the sort is stable (primitives in a leaf stay in id order).
+// Pairs, leaf counts and scatter repeat no overlap test that count+mark made: its verdicts for
+// a primitive's first 64 candidate leaves are kept as a bit mask.
+// The result depends only on the input, never on the thread count or the sort: every parallel
+// step writes to positions fixed by a scan, the radix sort is stable and the counting sort
+// restores ascending ids per leaf, so both give the same leaf ranges and primitive order.
 #pragma once
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <omp.h>
@@ -28,15 +42,85 @@
 
 namespace mtree {
 
+namespace detail {
+struct NoReferenceData {
+  template <class... A>
+  void operator()(A&&...) const {}
+};
+}  // namespace detail
+
 template <class Prims>
 class MatrixTreeBuilder {
  public:
   /// Builds `tree` over `prims`. Throws std::invalid_argument on bad options or input
   /// (non-finite bounds); an empty primitive set gives an empty tree (every query misses).
-  static void build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats);
+  static void build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats) {
+    build<0>(prims, opt, tree, stats, nullptr, detail::NoReferenceData{});
+  }
+  /// The same, and `Bytes` bytes of data per reference, fused into the build: `refData` gets
+  /// Bytes x references bytes, those of reference k (primitiveIndices()[k] in its leaf) written
+  /// by fn(uint8_t* out, const Prims::Local& prim, const Box& leafBox) — once per reference;
+  /// every thread calls its own copy of fn (so fn may keep a cache, e.g. of divisions).
+  /// Counting: at the scatter, where the primitive is in hand;
+  /// Radix: a pass over the leaves after the ranges ("refdata"), fetching each primitive again.
+  /// The bytes must depend on the primitive and the leaf only: both orders give the same data.
+  template <size_t Bytes, class RefFn>
+  static void build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats,
+                    std::vector<uint8_t>* refData, RefFn&& fn);
 };
 
 namespace detail {
+/// A reference with its data, for sorting a leaf's references by primitive id.
+template <size_t Bytes>
+struct Reference {
+  uint32_t id;
+  std::array<uint8_t, Bytes> data;
+};
+
+/// Sorts the distinct ids [b, e) ascending and their Bytes-byte data along with them: an
+/// insertion sort for the common few per leaf (nearly in order: threads take chunks of
+/// ascending ids), std::sort through `buf` for long leaves.
+template <size_t Bytes>
+void sortLeaf(uint32_t* ids, uint8_t* data, uint32_t b, uint32_t e, std::vector<Reference<Bytes>>& buf) {
+  if (e - b <= 32) {
+    for (uint32_t k = b + 1; k < e; ++k) {
+      const uint32_t v = ids[k];
+      if (ids[k - 1] < v) continue;
+      std::array<uint8_t, Bytes> d{};
+      if constexpr (Bytes > 0) std::memcpy(d.data(), data + size_t(k) * Bytes, Bytes);
+      uint32_t j = k;
+      for (; j > b && ids[j - 1] > v; --j) {
+        ids[j] = ids[j - 1];
+        if constexpr (Bytes > 0) std::memcpy(data + size_t(j) * Bytes, data + size_t(j - 1) * Bytes, Bytes);
+      }
+      ids[j] = v;
+      if constexpr (Bytes > 0) std::memcpy(data + size_t(j) * Bytes, d.data(), Bytes);
+    }
+    return;
+  }
+  if (std::is_sorted(ids + b, ids + e)) return;
+  buf.resize(e - b);
+  for (uint32_t k = b; k < e; ++k) {
+    buf[k - b].id = ids[k];
+    if constexpr (Bytes > 0) std::memcpy(buf[k - b].data.data(), data + size_t(k) * Bytes, Bytes);
+  }
+  std::sort(buf.begin(), buf.end(), [](const Reference<Bytes>& x, const Reference<Bytes>& y) { return x.id < y.id; });
+  for (uint32_t k = b; k < e; ++k) {
+    ids[k] = buf[k - b].id;
+    if constexpr (Bytes > 0) std::memcpy(data + size_t(k) * Bytes, buf[k - b].data.data(), Bytes);
+  }
+}
+
+/// prims.prefetch(i) where the primitive set offers it (a hint before a random gather).
+template <class P, class = void>
+struct HasPrefetch : std::false_type {};
+template <class P>
+struct HasPrefetch<P, std::void_t<decltype(std::declval<const P&>().prefetch(size_t{0}))>> : std::true_type {};
+template <class P>
+inline void prefetchPrimitive(const P& prims, size_t i) {
+  if constexpr (HasPrefetch<P>::value) prims.prefetch(i);
+}
+
 struct PhaseClock {
   using clock = std::chrono::steady_clock;
   clock::time_point start = clock::now(), last = start;
@@ -125,14 +209,21 @@ inline void checkBuildOptions(const BuildOptions& opt, size_t numPrimitives) {
                                 std::to_string(opt.blockEdge));
   if (!(opt.leafScale > 0)) throw std::invalid_argument("MatrixTree: leafScale must be > 0");
   if (!(opt.maxCandidates >= 1)) throw std::invalid_argument("MatrixTree: maxCandidates must be >= 1");
+  if (opt.sort != BuildSort::Radix && opt.sort != BuildSort::Counting)
+    throw std::invalid_argument("MatrixTree: unknown sort " + std::to_string(static_cast<int>(opt.sort)));
   if (numPrimitives >= MT_NULL) throw std::length_error("MatrixTree: too many primitives for 32-bit indices");
 }
 }  // namespace detail
 
 template <class Prims>
+template <size_t Bytes, class RefFn>
 void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree,
-                                     BuildStats* stats) {
+                                     BuildStats* stats, std::vector<uint8_t>* refData, RefFn&& fn) {
   detail::checkBuildOptions(opt, prims.size());
+  if constexpr (Bytes > 0) {
+    if (!refData) throw std::invalid_argument("MatrixTree: per-reference data needs an output vector");
+    refData->clear();
+  }
 
   const int threads = resolveThreads(opt.threads);
   if (stats) *stats = BuildStats{};
@@ -224,18 +315,31 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   if (stats) stats->height = H;
   clock.lap("setup");
 
-  // Candidate range of bottom-level cells of a primitive (its bounding box, clamped).
+  // Candidate range of bottom-level cells of a primitive (its bounding box, clamped). With a
+  // lower bound of 0, cellIndexNonNegative is cellIndex for every x (negatives and NaN clamp to
+  // 0 either way) without a floor per coordinate; every pass over the primitives computes it.
   auto cellRange = [&](const Box& b, int lo[3], int hi[3]) {
     const int dims[3] = {nx, ny, nz};
     for (int a = 0; a < 3; ++a) {
-      lo[a] = cellIndex((b.lo[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
-      hi[a] = cellIndex((b.hi[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
+      lo[a] = cellIndexNonNegative((b.lo[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
+      hi[a] = cellIndexNonNegative((b.hi[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
     }
   };
   // Candidate leaves are tested as boxes of one padded half size, given by their centres.
   const Vec3 half(0.5 * leafSize.x + pad, 0.5 * leafSize.y + pad, 0.5 * leafSize.z + pad);
   auto cellCentre = [&](int i, int j, int k) {
     return Vec3(org.x + (i + 0.5) * leafSize.x, org.y + (j + 0.5) * leafSize.y, org.z + (k + 0.5) * leafSize.z);
+  };
+  // tree.nodeBox(H, {i, j, k}) with the same arithmetic, from locals (the per-reference data
+  // is written through byte pointers, after which the tree's members would be reloaded).
+  auto leafBox = [org, leafSize](int i, int j, int k) {
+    Box b;
+    const int c[3] = {i, j, k};
+    for (int a = 0; a < 3; ++a) {
+      b.lo[a] = org[a] + c[a] * leafSize[a];
+      b.hi[a] = org[a] + (c[a] + 1) * leafSize[a];
+    }
+    return b;
   };
 
   // ---- count + mark (step 2) ------------------------------------------------------------------
@@ -291,27 +395,14 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   tree.leaves_.allocateMarked(marks.data(), threads);
   clock.lap("alloc");
 
-  // ---- scan counts (step 5) -------------------------------------------------------------------
-  std::vector<uint32_t>& offsets = scratch.offsets;
-  offsets.resize(static_cast<size_t>(n));
-  const uint64_t numPairs = exclusiveScan(counts.data(), offsets.data(), static_cast<size_t>(n), threads);
-  if (numPairs >= MT_NULL) throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
-  clock.lap("scan");
-
-  // ---- write pairs (step 6) -------------------------------------------------------------------
-  std::vector<uint32_t>& keys = scratch.keys;
-  std::vector<uint32_t>& values = scratch.values;
-  keys.resize(numPairs);
-  values.resize(numPairs);
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
-  for (int64_t i = 0; i < n; ++i) {
-    const auto prim = prims.local(i);
+  // The overlapped leaves of primitive i (local data `prim`), in the order of the count pass,
+  // from its bit mask: f(x, y, z) per leaf. Same decision rule as the count pass; beyond the 64
+  // masked candidates the test is repeated (only for the largest primitives).
+  auto forEachLeaf = [&](int64_t i, const auto& prim, auto&& f) {
     int lo[3], hi[3];
     cellRange(prim.bounds(), lo, hi);
-    uint32_t out = offsets[i];
     uint32_t cand = 0;
     const uint64_t mask = exact ? masks[i] : ~uint64_t{0};
-    // Same decision rule as the count pass; beyond the 64 masked candidates it is re-evaluated.
     const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
     const bool test = exact && thin < 2;
     const bool big = test && uint64_t(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) > 64;
@@ -320,10 +411,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
         for (int j = lo[1]; j <= hi[1]; ++j)
           for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
             const bool in = cand < 64 ? ((mask >> cand) & 1) != 0 : beyondMask(ii, j, k);
-            if (!in) continue;
-            keys[out] = leaves.storageIndex(ii, j, k);
-            values[out] = static_cast<uint32_t>(i);
-            ++out;
+            if (in) f(ii, j, k);
           }
     };
     if (big) {
@@ -332,34 +420,177 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     } else {
       emit([&](int, int, int) { return !test; });
     }
-  }
-  clock.lap("pairs");
+  };
 
-  // ---- radix sort by node (step 7) ------------------------------------------------------------
-  {
-    const uint64_t maxKey = uint64_t(tree.leaves_.numBlocks()) * tree.leaves_.blockVolume();
-    radixSortPairs(keys, values, ceilLog2(std::max<uint64_t>(maxKey, 2)), threads, scratch.tmpKeys, scratch.tmpValues);
-  }
-  clock.lap("sort");
+  std::vector<uint32_t>& values = scratch.values;
+  uint64_t numPairs = 0;
+  if (opt.sort == BuildSort::Radix) {
+    // ---- scan counts (step 5) -----------------------------------------------------------------
+    std::vector<uint32_t>& offsets = scratch.offsets;
+    offsets.resize(static_cast<size_t>(n));
+    numPairs = exclusiveScan(counts.data(), offsets.data(), static_cast<size_t>(n), threads);
+    if (numPairs >= MT_NULL)
+      throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
+    clock.lap("scan");
 
-  // ---- leaf ranges from neighbouring keys (step 8) --------------------------------------------
-  {
-    MtLeafRange* data = tree.leaves_.data().data();
-    const int64_t m = static_cast<int64_t>(numPairs);
-    uint64_t leafCount = 0;
+    // ---- write pairs (step 6) -----------------------------------------------------------------
+    std::vector<uint32_t>& keys = scratch.keys;
+    keys.resize(numPairs);
+    values.resize(numPairs);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
+    for (int64_t i = 0; i < n; ++i) {
+      uint32_t out = offsets[i];
+      forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
+        keys[out] = leaves.storageIndex(x, y, z);
+        values[out] = static_cast<uint32_t>(i);
+        ++out;
+      });
+    }
+    clock.lap("pairs");
+
+    // ---- radix sort by node (step 7) ----------------------------------------------------------
+    {
+      const uint64_t maxKey = uint64_t(tree.leaves_.numBlocks()) * tree.leaves_.blockVolume();
+      radixSortPairs(keys, values, ceilLog2(std::max<uint64_t>(maxKey, 2)), threads, scratch.tmpKeys,
+                     scratch.tmpValues);
+    }
+    clock.lap("sort");
+
+    // ---- leaf ranges from neighbouring keys (step 8) ------------------------------------------
+    {
+      MtLeafRange* data = tree.leaves_.data().data();
+      const int64_t m = static_cast<int64_t>(numPairs);
+      uint64_t leafCount = 0;
 #pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : leafCount)
-    for (int64_t i = 0; i < m; ++i) {
-      if (i == 0 || keys[i] != keys[i - 1]) {
+      for (int64_t i = 0; i < m; ++i) {
+        if (i == 0 || keys[i] != keys[i - 1]) {
+          ++leafCount;
+          data[keys[i]].begin = static_cast<uint32_t>(i);
+          if (i > 0) data[keys[i - 1]].end = static_cast<uint32_t>(i);
+        }
+      }
+      if (m > 0) data[keys[m - 1]].end = static_cast<uint32_t>(m);
+      if (stats) stats->leaves = leafCount;
+    }
+    clock.lap("offsets");
+
+    // ---- per-reference data: a pass over the leaves, gathering each reference's primitive ---
+    if constexpr (Bytes > 0) {
+      refData->resize(static_cast<size_t>(numPairs) * Bytes);
+      uint8_t* out = refData->data();
+      const MtLeafRange* data = tree.leaves_.data().data();
+      const int64_t ne = static_cast<int64_t>(tree.leaves_.data().size());
+#pragma omp parallel num_threads(threads)
+      {
+        auto f = fn;  // one copy per thread
+#pragma omp for schedule(dynamic, 256)
+        for (int64_t e = 0; e < ne; ++e) {
+          const MtLeafRange r = data[e];
+          if (r.begin == MT_NULL) continue;
+          int c[3];
+          tree.leaves_.entryCoords(static_cast<uint32_t>(e), c);
+          const Box lb = tree.nodeBox(H, c);
+          for (uint32_t k = r.begin; k < r.end; ++k) {
+            // The primitives of a leaf are scattered over the input: fetch ahead.
+            if (k + 16 < r.end) detail::prefetchPrimitive(prims, values[k + 16]);
+            f(out + size_t(k) * Bytes, prims.local(values[k]), lb);
+          }
+        }
+      }
+      clock.lap("refdata");
+    }
+  } else {
+    // ---- counting sort over the dense leaf storage --------------------------------------------
+    // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): count the
+    // references per leaf, scan, scatter. With several threads the counters are shared (atomic
+    // increments and cursors) and each leaf's ids are sorted afterwards; with one thread every
+    // update is a plain one and the primitives arrive in ascending order.
+    const bool shared = threads > 1;
+    const size_t L = tree.leaves_.data().size();
+    const int64_t nl = static_cast<int64_t>(L);
+    std::vector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
+    std::vector<uint32_t>& cursor = scratch.offsets;  // next free slot per leaf
+    perLeaf.assign(L, 0);
+    cursor.resize(L);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
+    for (int64_t i = 0; i < n; ++i) {
+      forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
+        uint32_t& c = perLeaf[leaves.storageIndex(x, y, z)];
+        if (shared) {
+#pragma omp atomic update
+          ++c;
+        } else {
+          ++c;
+        }
+      });
+    }
+    clock.lap("leaf counts");
+
+    numPairs = exclusiveScan(perLeaf.data(), cursor.data(), L, threads);
+    if (numPairs >= MT_NULL)
+      throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
+    {
+      MtLeafRange* data = tree.leaves_.data().data();
+      uint64_t leafCount = 0;
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : leafCount)
+      for (int64_t e = 0; e < nl; ++e) {
+        if (perLeaf[e] == 0) continue;
         ++leafCount;
-        data[keys[i]].begin = static_cast<uint32_t>(i);
-        if (i > 0) data[keys[i - 1]].end = static_cast<uint32_t>(i);
+        data[e] = MtLeafRange{cursor[e], cursor[e] + perLeaf[e]};
+      }
+      if (stats) stats->leaves = leafCount;
+    }
+    clock.lap("leaf scan");
+
+    // Scatter: each reference takes the next slot of its leaf. The primitive is in hand, so the
+    // per-reference data is written here too, next to its id.
+    values.resize(numPairs);
+    uint8_t* out = nullptr;
+    if constexpr (Bytes > 0) {
+      refData->resize(static_cast<size_t>(numPairs) * Bytes);
+      out = refData->data();
+    }
+#pragma omp parallel num_threads(threads)
+    {
+      auto f = fn;  // one copy per thread
+#pragma omp for schedule(dynamic, 512)
+      for (int64_t i = 0; i < n; ++i) {
+        const auto prim = prims.local(i);
+        forEachLeaf(i, prim, [&](int x, int y, int z) {
+          uint32_t& c = cursor[leaves.storageIndex(x, y, z)];
+          uint32_t slot;
+          if (shared) {
+#pragma omp atomic capture
+            slot = c++;
+          } else {
+            slot = c++;
+          }
+          values[slot] = static_cast<uint32_t>(i);
+          if constexpr (Bytes > 0) f(out + size_t(slot) * Bytes, prim, leafBox(x, y, z));
+        });
       }
     }
-    if (m > 0) data[keys[m - 1]].end = static_cast<uint32_t>(m);
-    tree.prims_.swap(values);
-    if (stats) stats->leaves = leafCount;
+    clock.lap("scatter");
+
+    // With several threads a leaf's slots were taken in any order: sort each leaf's ids
+    // (distinct) back to ascending, the radix sort's stable order.
+    if (shared) {
+      const MtLeafRange* data = tree.leaves_.data().data();
+      uint8_t* payload = Bytes > 0 ? refData->data() : nullptr;
+#pragma omp parallel num_threads(threads)
+      {
+        std::vector<detail::Reference<Bytes>> buf;
+#pragma omp for schedule(dynamic, 1024)
+        for (int64_t e = 0; e < nl; ++e) {
+          const MtLeafRange r = data[e];
+          if (r.begin != MT_NULL && r.end - r.begin > 1)
+            detail::sortLeaf<Bytes>(values.data(), payload, r.begin, r.end, buf);
+        }
+      }
+      clock.lap("leaf order");
+    }
   }
-  clock.lap("offsets");
+  tree.prims_.swap(values);
 
   // ---- existence up to the root (step 9) ------------------------------------------------------
   for (int l = H - 1; l >= 0; --l) {

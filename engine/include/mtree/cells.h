@@ -97,6 +97,8 @@ class CellSet {
   /// so they contain the exact bounds; higher-order and polyhedral cells are padded by 5% of
   /// their largest extent, because curved edges can bulge past the nodes. Empty cells: inf/-inf.
   const float* cellBox(size_t c) const { return &box_[6 * c]; }
+  /// A hint that cell c's bounds are read soon (the builder's gather over the leaves).
+  void prefetch(size_t c) const { __builtin_prefetch(&box_[6 * c]); }
   /// Cached (conservative) bounds as a Box: what the tree build uses.
   Box bounds(size_t c) const {
     const float* f = cellBox(c);
@@ -247,6 +249,102 @@ class CellSet {
   std::vector<float> box_;  // 6 per cell
   Vec3 maxExt_;
   CellAxes axes_ = CellAxes::Faces;
+};
+
+/// The point-location pre-test box of a cell in a leaf, 6 bytes (xlo xhi ylo yhi zlo zhi): the
+/// cell's cached bounds `cell` (CellSet::bounds), padded by 1e-3 of their largest extent (VTK's
+/// EvaluatePosition accepts points a little outside), clipped to the leaf box `leaf` and
+/// quantized outwards to 1/255 of the leaf. A point is mapped with the same arithmetic,
+/// (x - leaf.lo) * (255 / (leaf.hi - leaf.lo)), which is monotone, so a point inside the padded
+/// bounds is never rejected. Empty cells (NaN or inverted arithmetic) keep the full range.
+namespace detail {
+/// The padding of the point-location box: 1e-3 of the bounds' largest extent.
+inline double leafBoxPad(const Box& cell) {
+  const Vec3 e = cell.hi - cell.lo;
+  return 1e-3 * std::max({e.x, e.y, e.z});
+}
+/// One axis of quantizeLeafBox: [lo, hi] padded by `pad`, relative to `leafLo`, times `scale`
+/// (255 / leaf width), rounded outwards and clamped to [0, 255].
+inline void quantizeLeafAxis(double lo, double hi, double pad, double leafLo, double scale, uint8_t q[2]) {
+  const double vlo = (lo - pad - leafLo) * scale;
+  const double vhi = (hi + pad - leafLo) * scale;
+  if (vlo <= vhi) {
+    // Not NaN, and floor(vlo) <= ceil(vhi). Clamping to [0, 255] commutes with floor and ceil,
+    // and on [0, 255] truncation is floor: no branch on where the cell lies in the leaf (those
+    // are coin flips, and mispredicted branches were most of the cost).
+    const double l = std::min(std::max(vlo, 0.0), 255.0), h = std::min(std::max(vhi, 0.0), 255.0);
+    const int ih = static_cast<int>(h);
+    q[0] = static_cast<uint8_t>(static_cast<int>(l));
+    q[1] = static_cast<uint8_t>(ih + (static_cast<double>(ih) < h));
+    return;
+  }
+  const double fl = std::floor(vlo), ch = std::ceil(vhi);
+  q[0] = static_cast<uint8_t>(fl > 0 ? (fl < 255 ? fl : 255) : 0);
+  q[1] = static_cast<uint8_t>(ch < 255 ? (ch > 0 ? ch : 0) : 255);
+  if (!(fl <= ch)) {
+    q[0] = 0;
+    q[1] = 255;
+  }
+}
+}  // namespace detail
+
+inline void quantizeLeafBox(const Box& cell, const Box& leaf, uint8_t q[6]) {
+  const double pad = detail::leafBoxPad(cell);
+  for (int a = 0; a < 3; ++a)
+    detail::quantizeLeafAxis(cell.lo[a], cell.hi[a], pad, leaf.lo[a], 255.0 / (leaf.hi[a] - leaf.lo[a]), q + 2 * a);
+}
+
+/// quantizeLeafBox as the builder's per-reference function (MatrixTreeBuilder::build<6>): the
+/// same bytes, computed once per cell and leaf column. Each axis's two bytes depend on the cell
+/// and the leaf's interval on that axis only, and the builder's scatter gives all references
+/// of a cell in a row, so they are kept per axis for the current cell (a cell overlaps a few
+/// leaves per axis); and the leaves of a level have a handful of distinct widths per axis
+/// (round-off of root.lo + c * size), so the last width's 255 / width is kept too. Each build
+/// thread has its own copy.
+struct LeafBoxQuantizer {
+  static constexpr int kSlots = 8;
+  const CellSet* set = nullptr;
+  size_t cell = ~size_t{0};
+  double pad = 0;
+  double width[3] = {0, 0, 0}, scale[3] = {0, 0, 0};
+  double keyLo[3][kSlots], keyHi[3][kSlots];
+  uint8_t bytes[3][kSlots][2];
+  int used[3] = {0, 0, 0};
+
+  void operator()(uint8_t* q, const CellSet::Local& c, const Box& leaf) {
+    if (c.cell != cell || c.set != set) {
+      set = c.set;
+      cell = c.cell;
+      pad = detail::leafBoxPad(c.box);
+      used[0] = used[1] = used[2] = 0;
+    }
+    for (int a = 0; a < 3; ++a) {
+      const double lo = leaf.lo[a], hi = leaf.hi[a];
+      int s = 0;
+      while (s < used[a] && !(keyLo[a][s] == lo && keyHi[a][s] == hi)) ++s;
+      if (s == used[a]) {
+        const double w = hi - lo;
+        if (w != width[a]) {
+          width[a] = w;
+          scale[a] = 255.0 / w;
+        }
+        uint8_t b[2];
+        detail::quantizeLeafAxis(c.box.lo[a], c.box.hi[a], pad, lo, scale[a], b);
+        q[2 * a] = b[0];
+        q[2 * a + 1] = b[1];
+        if (s < kSlots) {
+          keyLo[a][s] = lo;
+          keyHi[a][s] = hi;
+          bytes[a][s][0] = b[0];
+          bytes[a][s][1] = b[1];
+          ++used[a];
+        }
+        continue;
+      }
+      q[2 * a] = bytes[a][s][0];
+      q[2 * a + 1] = bytes[a][s][1];
+    }
+  }
 };
 
 }  // namespace mtree

@@ -27,6 +27,15 @@ namespace mtree {
 
 enum class TreeKind : int { Octree = 0, RegularKd = 1 };
 enum class OverlapMode : int { Exact = 0, BoundingBox = 1 };
+/// How the builder groups the (leaf, primitive) references by leaf (see builder.h). Both give
+/// the same tree, bit for bit, for any thread count.
+///   Radix     the paper's §5.1: (leaf, primitive) pairs at per-primitive scanned offsets, a
+///             stable radix sort by leaf, leaf ranges from neighbouring keys.
+///   Counting  after the blocks are allocated the leaf storage is known and dense: count the
+///             references per leaf, scan over the leaves, scatter the primitive ids with per-leaf
+///             cursors, sort each leaf's few ids (the scatter's order depends on the threads).
+///             No pair keys, no sort passes over all references.
+enum class BuildSort : int { Radix = 0, Counting = 1 };
 
 const char* treeKindName(TreeKind k);
 
@@ -47,6 +56,9 @@ struct BuildOptions {
   double maxCandidates = 8.0;
   /// OpenMP threads; 0 = OpenMP's default.
   int threads = 0;
+  /// Grouping of the references by leaf (same tree either way). The OpenCL builder always
+  /// uses the radix sort.
+  BuildSort sort = BuildSort::Radix;
 };
 
 struct BuildStats {
@@ -138,8 +150,16 @@ class MatrixTree {
   /// The leaf-finding answer for bottom-level cell L when its ancestor at level `hi` is known
   /// absent: the empty child of L's deepest existing ancestor above `hi`.
   NodeRef searchAbove(const int L[3], int hi, TraversalStats* st) const;
-  /// Box of node c at level l, in world coordinates.
-  Box nodeBox(int level, const int c[3]) const;
+  /// Box of node c at level l, in world coordinates. Inline: the builder calls it per reference.
+  Box nodeBox(int level, const int c[3]) const {
+    Box b;
+    const Vec3 cs = cellSize_[level];
+    for (int a = 0; a < 3; ++a) {
+      b.lo[a] = root_.lo[a] + c[a] * cs[a];
+      b.hi[a] = root_.lo[a] + (c[a] + 1) * cs[a];
+    }
+    return b;
+  }
   /// Primitive range of an existing leaf.
   MtLeafRange leafRange(const NodeRef& n) const { return leaves_.get(n.c[0], n.c[1], n.c[2]); }
   /// The leaf at bottom-level cell L if it exists (its range in r), one block-sparse access.
