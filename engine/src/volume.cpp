@@ -586,6 +586,8 @@ inline void apronCorners(const uint16_t* p, __m128& lo, __m128& hi) {
 struct ApronRay {
   float P0s[3], Ss[3];
   __m128 P0, S;
+  __m128 nf;     // points per axis (float; 1 in lane 3)
+  __m128i nm2;   // the last cell per axis, n - 2 (0 in lane 3)
   ApronRay(const Frame& F, const double o[3], const double d[3], double t0) {
     for (int a = 0; a < 3; ++a) {
       P0s[a] = float(o[a] + d[a] * t0);
@@ -593,8 +595,21 @@ struct ApronRay {
     }
     P0 = _mm_setr_ps(P0s[0], P0s[1], P0s[2], 0.f);
     S = _mm_setr_ps(Ss[0], Ss[1], Ss[2], 0.f);
+    nf = _mm_setr_ps(float(F.n[0]), float(F.n[1]), float(F.n[2]), 1.f);
+    nm2 = _mm_setr_epi32(F.n[0] - 2, F.n[1] - 2, F.n[2] - 2, 0);
   }
   __m128 at(float kf) const { return _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(kf), S)); }
+  /// clampCell's cells of a position's three coordinates at once, in float (exact: the input is a
+  /// float, the points per axis < 2^24): clamped into [-1, n], floor, clamped into [0, n - 2];
+  /// NaN gives cell 0 as there.
+  __m128i cells(__m128 p) const {
+    const __m128 pc = _mm_min_ps(_mm_max_ps(p, _mm_set1_ps(-1.f)), nf);  // maxps(NaN, -1) = -1
+    __m128i c = _mm_cvttps_epi32(pc);
+    c = _mm_add_epi32(c, _mm_castps_si128(_mm_cmplt_ps(pc, _mm_cvtepi32_ps(c))));  // truncation -> floor
+    c = _mm_and_si128(c, _mm_cmpgt_epi32(c, _mm_set1_epi32(-1)));                   // max(c, 0)
+    const __m128i over = _mm_cmpgt_epi32(c, nm2);
+    return _mm_or_si128(_mm_and_si128(over, nm2), _mm_andnot_si128(over, c));      // min(c, n - 2)
+  }
 };
 
 /// One step of the apron walk at sample k: looks up the brick holding it (clamped into the grid).
@@ -606,13 +621,8 @@ template <typename T, bool Skip>
 inline bool apronEnter(const Frame& F, const ApronRay& ray, int levels, int64_t kEnd, ApronFetch<T>& fetch,
                        int64_t& k, uint64_t& skips, int o[3]) {
   const BlockSparseVolume& vol = *F.vol;
-  alignas(16) float p[4];
-  _mm_store_ps(p, ray.at(float(k)));
-  int cell[3];
-  for (int a = 0; a < 3; ++a) {
-    double f;
-    cell[a] = clampCell(double(p[a]), F.n[a], f);
-  }
+  alignas(16) int cell[4];
+  _mm_store_si128(reinterpret_cast<__m128i*>(cell), ray.cells(ray.at(float(k))));
   const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
   int empty = -1;
   if (Skip && !vol.nodeVisible(0, bi, bj, bk)) {
@@ -639,6 +649,17 @@ inline bool apronEnter(const Frame& F, const ApronRay& ray, int levels, int64_t 
   const double kf = std::floor(kx);
   const int64_t kLast = kf >= double(kEnd) ? kEnd : std::max<int64_t>(k, static_cast<int64_t>(kf));
   if (Skip) ++skips;
+  if (kLast > k) {
+    // The exit is rounded down, so sample kLast is usually still in the node: then the next step
+    // would find this node again (its ancestors above it are visible), the same kLast, count one
+    // more skip and move on by one sample. Done here without the second lookup.
+    const __m128i at = _mm_srai_epi32(ray.cells(ray.at(float(kLast))), LOG2DIM + empty);
+    if ((_mm_movemask_epi8(_mm_cmpeq_epi32(at, _mm_setr_epi32(node[0], node[1], node[2], 0))) & 0xFFF) == 0xFFF) {
+      if (Skip) ++skips;
+      k = kLast + 1;
+      return false;
+    }
+  }
   k = std::max(k + 1, kLast);
   return false;
 }
