@@ -108,13 +108,6 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
       }
 }
 
-// The padding of the point-location bounds pre-test: EvaluatePosition accepts points a little
-// outside in parametric space, so the bounds must not reject them.
-inline double LocatePad(const float* b)
-{
-  return 1e-3 * std::max({ double(b[1]) - b[0], double(b[3]) - b[2], double(b[5]) - b[4] });
-}
-
 // vtkTetra::EvaluatePosition accepts barycentric coordinates within this of [0, 1].
 constexpr double kTetraTolerance = 1e-3;
 
@@ -159,62 +152,6 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   return -1;
 }
 
-void ComputeLeafBoxes(vtkMatrixTreeLocatorInternals& in, int threads)
-{
-  const mtree::MatrixTree& tree = in.Tree;
-  const std::vector<uint32_t>& prims = tree.primitiveIndices();
-  in.LeafBoxes.resize(prims.size() * 6);
-  if (tree.empty())
-  {
-    return;
-  }
-  const int H = tree.height();
-  const auto& m = tree.leafLevel();
-  const int64_t ne = static_cast<int64_t>(m.data().size());
-  const int nt = threads > 0 ? threads : omp_get_max_threads();
-#pragma omp parallel for num_threads(nt) schedule(dynamic, 256)
-  for (int64_t e = 0; e < ne; ++e)
-  {
-    const MtLeafRange r = m.data()[static_cast<size_t>(e)];
-    if (r.begin == MT_NULL)
-    {
-      continue;
-    }
-    int c[3];
-    m.entryCoords(static_cast<uint32_t>(e), c);
-    const mtree::Box lb = tree.nodeBox(H, c);
-    double scale[3];
-    for (int a = 0; a < 3; ++a)
-    {
-      scale[a] = 255.0 / (lb.hi[a] - lb.lo[a]);
-    }
-    for (uint32_t k = r.begin; k < r.end; ++k)
-    {
-      // The cells of a leaf are scattered over the cell array: fetch ahead, or every reference
-      // waits for a cache miss.
-      if (k + 16 < r.end)
-      {
-        __builtin_prefetch(in.Cells.cellBox(prims[k + 16]));
-      }
-      const float* b = in.Cells.cellBox(prims[k]);
-      const double pad = LocatePad(b);
-      uint8_t* q = &in.LeafBoxes[6 * static_cast<size_t>(k)];
-      for (int a = 0; a < 3; ++a)
-      {
-        const double lo = std::floor((b[2 * a] - pad - lb.lo[a]) * scale[a]);
-        const double hi = std::ceil((b[2 * a + 1] + pad - lb.lo[a]) * scale[a]);
-        // Clamped into [0, 255]; a NaN (empty cell) keeps the full range: the exact test decides.
-        q[2 * a] = static_cast<uint8_t>(lo > 0 ? (lo < 255 ? lo : 255) : 0);
-        q[2 * a + 1] = static_cast<uint8_t>(hi < 255 ? (hi > 0 ? hi : 0) : 255);
-        if (!(lo <= hi))
-        {
-          q[2 * a] = 0;
-          q[2 * a + 1] = 255;
-        }
-      }
-    }
-  }
-}
 }
 
 //------------------------------------------------------------------------------
@@ -410,6 +347,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   opt.leafScale = this->LeafScale;
   opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
   opt.maxCandidates = this->MaxCandidates;
+  opt.sort = this->BuildSort == RADIX ? mtree::BuildSort::Radix : mtree::BuildSort::Counting;
   // Threads: as set, or (0) one per 32k cells up to all: below that a parallel region's
   // start and barriers cost more than the work, and far more on a loaded machine.
   const int buildThreads = this->NumberOfThreads > 0
@@ -423,15 +361,16 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
       std::move(pts), std::move(offsets), std::move(conn), std::move(types), buildThreads);
     in.Cells.setAxes(this->FullSeparatingAxes ? mtree::CellAxes::All : mtree::CellAxes::Faces);
     convertMs2 = msSince(tStart) - convertMs;
-    mtree::MatrixTreeBuilder<mtree::CellSet>::build(in.Cells, opt, in.Tree, &in.Stats);
+    // The quantized leaf boxes are the builder's per-reference data: written at the scatter
+    // (COUNTING) or by a pass over the leaves (RADIX), the same bytes either way.
+    mtree::MatrixTreeBuilder<mtree::CellSet>::build<6>(
+      in.Cells, opt, in.Tree, &in.Stats, &in.LeafBoxes, mtree::LeafBoxQuantizer());
   }
   catch (const std::exception& e)
   {
     vtkErrorMacro("BuildLocator failed: " << e.what());
     return;
   }
-  const Clock::time_point tBounds = Clock::now();
-  ComputeLeafBoxes(in, buildThreads);
   {
     const mtree::Vec3 m = in.Cells.maxExtent();
     in.MaxCellExtent[0] = m.x;
@@ -445,7 +384,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     {
       os << "; " << ph.first << " " << ph.second;
     }
-    os << "; leafboxes " << msSince(tBounds) << "; total " << msSince(tStart);
+    os << "; total " << msSince(tStart);
     in.Phases = os.str();
   }
   in.BuiltOn = ds;
@@ -1493,6 +1432,7 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetFullSeparatingAxes(other->FullSeparatingAxes);
   this->SetMaxCandidates(other->MaxCandidates);
   this->SetNumberOfThreads(other->NumberOfThreads);
+  this->SetBuildSort(other->BuildSort);
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
   this->SetBackend(other->Backend);
   this->SetOpenCLDevice(other->OpenCLDevice);
@@ -1510,6 +1450,7 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LeafScale: " << this->LeafScale << "\n";
   os << indent << "MaxCandidates: " << this->MaxCandidates << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
+  os << indent << "BuildSort: " << this->GetBuildSortAsString() << "\n";
   os << indent << "Backend: " << this->GetBackendAsString() << "\n";
   os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
   os << indent << "OpenCLDeviceName: " << this->Internals->CLDeviceName << "\n";

@@ -15,7 +15,8 @@
  * vtkStaticCellLocator on the same data.
  *
  * Settings: TreeType (OCTREE default, KDTREE), Height (0 = chosen from the cells' sizes),
- * BlockSize (8), NumberOfThreads for the build (0 = all). Superclass settings used:
+ * BlockSize (8), NumberOfThreads for the build (0 = all), BuildSort (COUNTING, or the paper's
+ * RADIX: same tree). Superclass settings used:
  * UseExistingSearchStructure (keep the tree when the data set changes), LazyEvaluation
  * (build on the first query); NumberOfCellsPerNode, MaxLevel, Automatic, Level, Tolerance and
  * CacheCellBounds are ignored: the height rule replaces them, and cell bounds are always kept.
@@ -140,6 +141,32 @@ public:
    */
   vtkSetClampMacro(NumberOfThreads, int, 0, 4096);
   vtkGetMacro(NumberOfThreads, int);
+  ///@}
+
+  enum BuildSorts
+  {
+    RADIX = 0,
+    COUNTING = 1
+  };
+
+  ///@{
+  /**
+   * How the build groups the (leaf, cell) references by leaf; the tree, the answers and
+   * GetMemorySize() are the same either way, for any NumberOfThreads.
+   * - COUNTING (default): once the leaf blocks are allocated, count the references per leaf,
+   *   scan, scatter the cell ids with per-leaf cursors and sort each leaf's few ids; the
+   *   quantized leaf boxes are written at the scatter, where the cell's bounds are in hand.
+   *   Build phases "leaf counts", "leaf scan", "scatter", "leaf order".
+   * - RADIX: the paper's §5.1 (pairs at scanned offsets, a stable radix sort by leaf, ranges
+   *   from neighbouring keys), then a pass over the leaves that fetches every cell's bounds
+   *   again for the leaf boxes. Phases "scan", "pairs", "sort", "offsets", "refdata".
+   * Changing it rebuilds the tree on the next query.
+   */
+  vtkSetClampMacro(BuildSort, int, RADIX, COUNTING);
+  vtkGetMacro(BuildSort, int);
+  void SetBuildSortToRadix() { this->SetBuildSort(RADIX); }
+  void SetBuildSortToCounting() { this->SetBuildSort(COUNTING); }
+  const char* GetBuildSortAsString() const { return this->BuildSort == RADIX ? "radix" : "counting"; }
   ///@}
 
   enum Backends
@@ -293,7 +320,10 @@ public:
    */
   vtkIdType GetMemorySize();
   double GetLastBuildTime();
-  /** Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; total ..."). */
+  /**
+   * Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; total ...";
+   * the tree phases depend on BuildSort, see there).
+   */
   const char* GetBuildPhases();
   ///@}
 
@@ -315,6 +345,7 @@ protected:
   double LeafScale = 1.0;
   double MaxCandidates = 16.0;
   int NumberOfThreads = 0;
+  int BuildSort = COUNTING;
   int Backend = CPU;
   char* OpenCLDevice = nullptr;
   vtkIdType NumberOfOpenCLUploads = 0;
