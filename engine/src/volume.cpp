@@ -3,10 +3,18 @@
 #include "mtree/volume.h"
 
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+// The AVX2 marcher needs GCC/Clang function targets on x86 (runtime dispatch, no -march).
+#if defined(__SSE2__) && defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+#define MT_VOLUME_AVX2 1
+#include <immintrin.h>
+#else
+#define MT_VOLUME_AVX2 0
 #endif
 
 #include <omp.h>
@@ -133,7 +141,7 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
     for (int64_t b = 0; b < nBricks; ++b)
       if (!opt.sparse || l0.occ[size_t(b)]) brickPtr_[size_t(b)] = count++;
     const size_t total = size_t(count) * BRICK_VOLUME;
-    if (storage_ == VoxelStorage::UInt8) b8_.assign(total, 0);
+    if (storage_ == VoxelStorage::UInt8) b8_.assign(total + BRICK_PAD, 0);
     else b16_.assign(total, 0);
     const float off = offset_;
 #pragma omp parallel for num_threads(threads) schedule(static)
@@ -264,6 +272,9 @@ struct Frame {
   float offset;      // added to an interpolated stored value
   double dt;         // world units per step
   float threshold;
+  int lanes;         // 8: the unshaded UInt8/UInt16 float rays take the AVX2 marcher; 1: the SSE2 one
+  const uint32_t* runBricks;  // AVX2 marcher: per level-0 brick its stored brick where the walk may
+                              // march through it, MT_NULL where it stops (absent; skipping: invisible)
   double spacing[3];
   double ambient, diffuse, specular, specularPower;
 };
@@ -767,9 +778,167 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
   _mm_storeu_ps(out, acc.c);
 }
 
+#if MT_VOLUME_AVX2
+// The AVX2 marcher: compiled for AVX2 with a function attribute (the build sets no -march) and
+// chosen at run time (renderVolume: cpuHasAvx2). "avx2" only, never "fma" or "avx512f" (which
+// implies it): GCC would fuse the multiply-adds and the image would differ from the SSE2 one.
+#define MT_AVX2 __attribute__((target("avx2")))
+
+/// The corner pairs (v[off], v[off + 1]) of 8 cells of apron bricks, one 32-bit gather: each
+/// lane's first and second value. (8-bit: the gather reads 2 bytes past the pair; the brick
+/// array is padded for it, see BlockSparseVolume::BRICK_PAD.)
+MT_AVX2 inline void gatherPairs(const uint8_t* base, __m256i off, __m256 & first, __m256 & second) {
+  const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 1);
+  const __m256i m = _mm256_set1_epi32(0xFF);
+  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, m));
+  second = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(w, 8), m));
+}
+MT_AVX2 inline void gatherPairs(const uint16_t* base, __m256i off, __m256 & first, __m256 & second) {
+  const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 2);
+  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, _mm256_set1_epi32(0xFFFF)));
+  second = _mm256_cvtepi32_ps(_mm256_srli_epi32(w, 16));
+}
+
+/// marchApron<T, Skip, false> for 8 consecutive samples at a time. The same walk (apronEnter,
+/// apronClampedSample) finds the first sample in a stored visible brick; from there samples
+/// k..k+7 get their positions (lane j: P0 + (kf + j) S, the same float operations as the SSE2
+/// marcher), cells, bricks (F.runBricks), and visible-cell bits at once, across brick faces. The
+/// leading lanes whose cell needs no clamping and whose brick is stored and visible, up to kEnd,
+/// are taken; at the first other lane the walk takes over again, as the SSE2 marcher does when it
+/// leaves a brick (its next brick lookup then lands in the same place, so it skips the same
+/// nodes). A chunk whose taken cells are all invisible costs no corner reads; otherwise their
+/// corners are gathered and interpolated (z, then y, then x, as marchApron), the table indices
+/// computed, and the taken lanes composited one after the other, in order, an invisible cell's
+/// lane with an all-zero entry (which changes nothing, exactly; it is not counted as a sample):
+/// the image, the early-termination point and the sample and skip counts are marchApron's
+/// exactly. Rays with more than 2^24 - 8 samples are not sent here (kf + j must be exact).
+template <typename T, bool Skip>
+MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[3], const double d[3], double t0,
+                            int64_t kEnd, float out[4], uint64_t& samplesOut, uint64_t& skipsOut) {
+  uint64_t samples = 0, skips = 0;
+  AccT acc;
+  const float Tmin = 1.f - F.threshold;
+  const ApronRay ray(F, o, d, t0);
+  const __m256 P0x = _mm256_set1_ps(ray.P0s[0]), P0y = _mm256_set1_ps(ray.P0s[1]), P0z = _mm256_set1_ps(ray.P0s[2]);
+  const __m256 Sx = _mm256_set1_ps(ray.Ss[0]), Sy = _mm256_set1_ps(ray.Ss[1]), Sz = _mm256_set1_ps(ray.Ss[2]);
+  const __m256 laneF = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
+  // Cells that need no clamping: 0 <= i <= n - 2 per axis.
+  const __m256i mx = _mm256_set1_epi32(F.n[0] - 2), my = _mm256_set1_epi32(F.n[1] - 2), mz = _mm256_set1_epi32(F.n[2] - 2);
+  const __m256i nb0 = _mm256_set1_epi32(F.nb[0]), nb1 = _mm256_set1_epi32(F.nb[1]);
+  const __m256 tlo = _mm256_set1_ps(F.tlo), tscale = _mm256_set1_ps(F.tscale), half = _mm256_set1_ps(0.5f);
+  const __m256i tlast = _mm256_set1_epi32(F.tlast);
+  const __m256 offset = _mm256_set1_ps(F.offset);
+  const float* const table = F.table;
+  const int levels = F.vol->levelCount();
+  const int* const bricks = reinterpret_cast<const int*>(F.runBricks);  // MT_NULL (-1): not marched through
+  const int* const words = reinterpret_cast<const int*>(fetch.masks);   // per brick 16 words: bit x + 8 y + 64 z
+  const T* const data = fetch.data;
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY, VOL = BlockSparseVolume::BRICK_VOLUME;
+  static_assert(SY == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
+  const __m256i rowY = _mm256_set1_epi32(SY), rowZ = _mm256_set1_epi32(SZ), rowYZ = _mm256_set1_epi32(SZ + SY);
+  const __m256i brickVolume = _mm256_set1_epi32(VOL);
+  const __m256i zeroEntry = _mm256_set1_epi32(4 * (F.tlast + 1));
+  alignas(32) int32_t idx[8];
+  int64_t k = 0;
+  while (k <= kEnd) {
+    int bo[3];
+    if (!apronEnter<T, Skip>(F, ray, levels, kEnd, fetch, k, skips, bo)) continue;
+    const int64_t kStart = k;
+    bool done = false;
+    float kf = float(k);
+    while (k <= kEnd) {
+      const __m256 kv = _mm256_add_ps(_mm256_set1_ps(kf), laneF);
+      const __m256 px = _mm256_add_ps(P0x, _mm256_mul_ps(kv, Sx));
+      const __m256 py = _mm256_add_ps(P0y, _mm256_mul_ps(kv, Sy));
+      const __m256 pz = _mm256_add_ps(P0z, _mm256_mul_ps(kv, Sz));
+      const __m256i ix = _mm256_cvttps_epi32(px), iy = _mm256_cvttps_epi32(py), iz = _mm256_cvttps_epi32(pz);
+      const __m256i clamp = _mm256_or_si256(
+          _mm256_or_si256(_mm256_or_si256(_mm256_cmpgt_epi32(ix, mx), _mm256_cmpgt_epi32(zeroi, ix)),
+                          _mm256_or_si256(_mm256_cmpgt_epi32(iy, my), _mm256_cmpgt_epi32(zeroi, iy))),
+          _mm256_or_si256(_mm256_cmpgt_epi32(iz, mz), _mm256_cmpgt_epi32(zeroi, iz)));
+      // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
+      const __m256i b = _mm256_andnot_si256(
+          clamp, _mm256_add_epi32(
+                     _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), nb1),
+                                                         _mm256_srli_epi32(iy, LOG2DIM)),
+                                        nb0),
+                     _mm256_srli_epi32(ix, LOG2DIM)));
+      const __m256i ptr = _mm256_i32gather_epi32(bricks, b, 4);
+      // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
+      // of the masks, issued without waiting for the brick pointers.
+      const __m256i lx = _mm256_and_si256(ix, seven), ly = _mm256_and_si256(iy, seven), lz = _mm256_and_si256(iz, seven);
+      const __m256i bit = _mm256_add_epi32(lx, _mm256_add_epi32(_mm256_slli_epi32(ly, 3), _mm256_slli_epi32(lz, 6)));
+      const __m256i word = _mm256_i32gather_epi32(words, _mm256_add_epi32(_mm256_slli_epi32(b, 4), _mm256_srli_epi32(bit, 5)), 4);
+      const __m256i vbit = _mm256_slli_epi32(_mm256_srlv_epi32(word, _mm256_and_si256(bit, _mm256_set1_epi32(31))), 31);
+      const __m256i stop = _mm256_or_si256(clamp, _mm256_cmpeq_epi32(ptr, _mm256_set1_epi32(-1)));
+      unsigned go = ~unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(stop))) & 0xFFu;
+      const int64_t left = kEnd - k;  // lanes 0..left are samples of the ray
+      if (left < 7) go &= (2u << left) - 1u;
+      const int n = __builtin_ctz(~go);  // leading lanes taken (go < 256: at most 8)
+      if (n == 0) break;                 // sample k needs clamping or is in an empty brick: the walk
+      const unsigned vis = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(vbit))) & ((2u << (n - 1)) - 1u);
+      if (vis) {
+        const __m256 fx = _mm256_max_ps(_mm256_sub_ps(px, _mm256_cvtepi32_ps(ix)), zero);
+        const __m256 fy = _mm256_max_ps(_mm256_sub_ps(py, _mm256_cvtepi32_ps(iy)), zero);
+        const __m256 fz = _mm256_max_ps(_mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz)), zero);
+        // Voxel of corner 0: brick * 9^3 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz; 0 in the
+        // lanes without a brick.
+        const __m256i off = _mm256_andnot_si256(
+            stop, _mm256_add_epi32(_mm256_mullo_epi32(ptr, brickVolume),
+                                   _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz)))));
+        __m256 c0, c1, c2, c3, c4, c5, c6, c7;  // corner dx + 2 dy + 4 dz
+        gatherPairs(data, off, c0, c1);
+        gatherPairs(data, _mm256_add_epi32(off, rowY), c2, c3);
+        gatherPairs(data, _mm256_add_epi32(off, rowZ), c4, c5);
+        gatherPairs(data, _mm256_add_epi32(off, rowYZ), c6, c7);
+        const __m256 z0 = _mm256_add_ps(c0, _mm256_mul_ps(fz, _mm256_sub_ps(c4, c0)));
+        const __m256 z1 = _mm256_add_ps(c1, _mm256_mul_ps(fz, _mm256_sub_ps(c5, c1)));
+        const __m256 z2 = _mm256_add_ps(c2, _mm256_mul_ps(fz, _mm256_sub_ps(c6, c2)));
+        const __m256 z3 = _mm256_add_ps(c3, _mm256_mul_ps(fz, _mm256_sub_ps(c7, c3)));
+        const __m256 y0 = _mm256_add_ps(z0, _mm256_mul_ps(fy, _mm256_sub_ps(z2, z0)));
+        const __m256 y1 = _mm256_add_ps(z1, _mm256_mul_ps(fy, _mm256_sub_ps(z3, z1)));
+        const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), offset);
+        const __m256i raw = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, tlo), tscale), half));
+        // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
+        // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
+        const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), tlast), 2);
+        _mm256_store_si256(reinterpret_cast<__m256i*>(idx),
+                           _mm256_blendv_epi8(zeroEntry, e4, _mm256_srai_epi32(vbit, 31)));
+        for (int j = 0; j < n; ++j) {
+          acc.add(table + idx[j]);
+          if (acc.T <= Tmin) {
+            samples += __builtin_popcount(vis & ((2u << j) - 1u));
+            done = true;
+            break;
+          }
+        }
+        if (done) break;
+        samples += __builtin_popcount(vis);
+      }
+      if (n < 8) {
+        k += n;
+        break;
+      }
+      k += 8;  // not k += n: the next chunk's positions need not wait for this one's gathers
+      kf += 8.f;
+    }
+    if (done) break;
+    if (k == kStart) {
+      if (apronClampedSample<false>(F, ray, k, nullptr, acc, samples)) break;
+      ++k;
+    }
+  }
+  samplesOut += samples;
+  skipsOut += skips;
+  _mm_storeu_ps(out, acc.c);
+}
+#endif  // MT_VOLUME_AVX2
 #endif
 
-/// march() for every storage; the SSE2 marcher for UInt8/UInt16 in float.
+/// march() for every storage; for UInt8/UInt16 in float the SSE2 marcher, or unshaded the AVX2
+/// one where renderVolume chose it (F.lanes == 8).
 template <typename R, bool Skip, bool Shade, typename Fetch>
 inline void marchRay(const Frame& F, const Fetch& fetch, const double o[3], const double d[3], double t0,
                      int64_t kEnd, const double viewDir[3], float out[4], uint64_t& samples, uint64_t& skips) {
@@ -779,12 +948,32 @@ inline void marchRay(const Frame& F, const Fetch& fetch, const double o[3], cons
 template <typename R, bool Skip, bool Shade, typename T>
 inline void marchRay(const Frame& F, const ApronFetch<T>& fetch, const double o[3], const double d[3], double t0,
                      int64_t kEnd, const double viewDir[3], float out[4], uint64_t& samples, uint64_t& skips) {
-  if (std::is_same<R, float>::value)
-    marchApron<T, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
-  else
+  if (!std::is_same<R, float>::value) {
     march<R, ApronFetch<T>, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
+    return;
+  }
+#if MT_VOLUME_AVX2
+  if (!Shade && F.lanes == 8 && kEnd < (int64_t(1) << 24) - 8) {
+    marchApronAvx2<T, Skip>(F, fetch, o, d, t0, kEnd, out, samples, skips);
+    return;
+  }
+#endif
+  marchApron<T, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
 }
 #endif
+
+/// The CPU runs AVX2 (and the OS saves its registers: GCC's cpu model checks both).
+bool cpuHasAvx2() {
+#if MT_VOLUME_AVX2
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  return has;
+#else
+  return false;
+#endif
+}
 
 template <typename R, typename Fetch, bool Skip, bool Shade>
 void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
@@ -943,7 +1132,8 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   const auto start = std::chrono::steady_clock::now();
   if (vol.levelCount() == 0) throw std::invalid_argument("renderVolume: the volume was not built");
   checkVolumeRenderArguments(geo, tf, cam, opt, "renderVolume");
-  const std::vector<float> table = stepCorrectedTable(tf, opt.sampleDistance);
+  std::vector<float> table = stepCorrectedTable(tf, opt.sampleDistance);
+  table.insert(table.end(), 4, 0.f);  // an all-zero entry past the last one (the AVX2 marcher's invisible cells)
 
   Frame F;
   F.vol = &vol;
@@ -963,8 +1153,31 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   F.diffuse = opt.diffuse;
   F.specular = opt.specular;
   F.specularPower = opt.specularPower;
+  // MATRIXTREE_VOLUME_SIMD=sse2 forces the SSE2 marcher (as opt.vectorized = false) for a whole
+  // process, e.g. to time both from Python.
+  const char* simd = std::getenv("MATRIXTREE_VOLUME_SIMD");
+  const bool forceSse2 = simd && std::strcmp(simd, "sse2") == 0;
+  const bool apron = vol.storage() != VoxelStorage::Float32;
+  // The AVX2 marcher indexes voxels (stored brick * 9^3 + offset) and mask words (level-0 brick
+  // * 16 + word) with 32-bit integers.
+  const bool indexable = uint64_t(vol.stats().bricksStored + 1) * BlockSparseVolume::BRICK_VOLUME < (uint64_t(1) << 31) &&
+                         uint64_t(vol.stats().bricks) * 2 * DIM < (uint64_t(1) << 31);
+  F.lanes = apron && !opt.doublePrecision && !opt.shade && indexable && opt.vectorized && !forceSse2 && cpuHasAvx2() ? 8 : 1;
+  // The bricks the AVX2 marcher may march through: the stored ones, but with skipping only the
+  // visible ones (all bricks are stored when the volume was built dense).
+  std::vector<uint32_t> runBricks;
+  F.runBricks = apron ? vol.brickPointers().data() : nullptr;
+  if (F.lanes == 8 && opt.emptySpaceSkipping && vol.stats().bricksStored != vol.stats().bricksVisible) {
+    runBricks = vol.brickPointers();
+    for (int k = 0; k < F.nb[2]; ++k)
+      for (int j = 0; j < F.nb[1]; ++j)
+        for (int i = 0; i < F.nb[0]; ++i)
+          if (!vol.nodeVisible(0, i, j, k)) runBricks[(size_t(k) * F.nb[1] + j) * F.nb[0] + i] = MT_NULL;
+    F.runBricks = runBricks.data();
+  }
 
   VolumeImage img;
+  img.lanes = F.lanes;
   img.width = cam.width;
   img.height = cam.height;
   const int w = std::max(1, static_cast<int>(std::lround(cam.width / opt.imageSampleDistance)));

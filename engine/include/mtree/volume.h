@@ -141,6 +141,9 @@ class BlockSparseVolume {
   /// APRON^3 entries, and the offset added to a stored value (signed input).
   static constexpr int APRON = DIM + 1;
   static constexpr int BRICK_VOLUME = APRON * APRON * APRON;
+  /// bricks8() holds BRICK_PAD zero bytes after its last brick: the AVX2 marcher reads a cell's
+  /// corner pair (2 bytes) with a 4-byte gather.
+  static constexpr int BRICK_PAD = 4;
   const std::vector<uint32_t>& brickPointers() const { return brickPtr_; }
   const std::vector<uint8_t>& bricks8() const { return b8_; }
   const std::vector<uint16_t>& bricks16() const { return b16_; }
@@ -252,10 +255,15 @@ struct VolumeRenderOptions {
   bool shade = false;                // gradient (of the trilinear interpolant) shading, headlight
   double ambient = 0.2, diffuse = 0.7, specular = 0.2, specularPower = 10;
   int threads = 0;                   // 0 = OpenMP's default
+  /// UInt8/UInt16 storage, float, unshaded: march 8 samples at a time with AVX2 where the CPU has
+  /// it (chosen at run time). false: the SSE2 marcher. Both give the same image bit for bit; the
+  /// environment variable MATRIXTREE_VOLUME_SIMD=sse2 also forces the SSE2 one.
+  bool vectorized = true;
 };
 
 struct VolumeImage {
   int width = 0, height = 0;
+  int lanes = 1;  // samples per step of the marcher that ran: 8 (AVX2, see vectorized) or 1
   std::vector<float> rgba;  // premultiplied colour + opacity, 4 per pixel, row 0 at the bottom
   uint64_t rays = 0, samples = 0, skips = 0;  // rays cast, samples classified, nodes skipped
   double ms = 0;
