@@ -315,8 +315,9 @@ public:
   vtkIdType GetNumberOfReferences();
   /**
    * Bytes held: the tree (pointer matrices, blocks, leaf ranges, cell index lists), the
-   * engine's copy of the cells (points, 32-bit connectivity and offsets, types, float bounds)
-   * and the quantized leaf-local cell boxes (6 bytes per reference).
+   * engine's copy of the cells (points, 32-bit connectivity, 32-bit offsets unless every cell
+   * has the same number of points, types, float bounds) and the quantized leaf-local cell
+   * boxes (6 bytes per reference).
    */
   vtkIdType GetMemorySize();
   double GetLastBuildTime();

@@ -76,6 +76,18 @@ void CellSet::validate() const {
     }
 }
 
+void CellSet::dropUniformOffsets() {
+  // Single-type grids (all tetrahedra, all hexahedra, triangle meshes): cell c starts at c x k
+  // in the connectivity, so 4 bytes per cell need not be stored (nor read per query).
+  const size_t n = size();
+  if (n == 0) return;
+  const uint32_t k = off_[1] - off_[0];
+  for (size_t c = 1; c < n; ++c)
+    if (off_[c + 1] - off_[c] != k) return;
+  uniform_ = k;
+  std::vector<uint32_t>().swap(off_);
+}
+
 namespace {
 // The float nearest x on the side of `dir` (-1: not above x, +1: not below x).
 inline float roundOut(double x, int dir) {

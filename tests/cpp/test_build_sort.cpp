@@ -10,12 +10,6 @@
 //            short leaves with data, an empty primitive set, a bad sort value.
 #include <gtest/gtest.h>
 
-#include <vtkCellArray.h>
-#include <vtkDataArray.h>
-#include <vtkPoints.h>
-#include <vtkUnsignedCharArray.h>
-#include <vtkUnstructuredGrid.h>
-#include <vtkXMLUnstructuredGridReader.h>
 
 #include <algorithm>
 #include <cmath>
@@ -27,6 +21,7 @@
 #include "mtree/builder.h"
 #include "mtree/cells.h"
 #include "test_util.h"
+#include "vtk_grid_util.h"
 
 namespace {
 
@@ -38,30 +33,14 @@ using mtree::MatrixTreeBuilder;
 using mtree::OverlapMode;
 using mtree::TreeKind;
 
-/// An unstructured grid (.vtu) as a CellSet, in the file's cell order.
+/// A CFD grid of the shared data folder as a CellSet, in the file's cell order.
 CellSet loadGrid(const std::string& rel) {
-  vtkNew<vtkXMLUnstructuredGridReader> r;
-  const std::string path = mtest::dataPath(rel);
-  r->SetFileName(path.c_str());
-  r->Update();
-  vtkUnstructuredGrid* g = r->GetOutput();
+  vtkSmartPointer<vtkUnstructuredGrid> g = mtest::readGrid(rel);
   if (!g || g->GetNumberOfCells() == 0) {
-    ADD_FAILURE() << "no cells read from " << path;
+    ADD_FAILURE() << "no cells read from " << rel;
     throw std::runtime_error("loadGrid");
   }
-  const vtkIdType np = g->GetNumberOfPoints(), nc = g->GetNumberOfCells();
-  std::vector<double> pts(static_cast<size_t>(np) * 3);
-  for (vtkIdType i = 0; i < np; ++i) g->GetPoint(i, &pts[3 * i]);
-  std::vector<uint32_t> off(static_cast<size_t>(nc) + 1, 0), conn;
-  std::vector<uint8_t> types(static_cast<size_t>(nc));
-  vtkNew<vtkIdList> ids;
-  for (vtkIdType c = 0; c < nc; ++c) {
-    types[c] = static_cast<uint8_t>(g->GetCellType(c));
-    g->GetCellPoints(c, ids);
-    for (vtkIdType k = 0; k < ids->GetNumberOfIds(); ++k) conn.push_back(static_cast<uint32_t>(ids->GetId(k)));
-    off[c + 1] = static_cast<uint32_t>(conn.size());
-  }
-  return CellSet(std::move(pts), std::move(off), std::move(conn), std::move(types));
+  return mtest::cellSet(g);
 }
 
 /// A triangle mesh as a CellSet of VTK_TRIANGLE cells (what the locator builds on polydata).

@@ -7,12 +7,14 @@
 #include <string>
 #include <vector>
 
+#include <vtkIdList.h>
 #include <vtkNew.h>
 #include <vtkPoints.h>
 #include <vtkSmartPointer.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
+#include "mtree/cells.h"
 #include "test_util.h"
 
 namespace mtest {
@@ -72,6 +74,23 @@ inline vtkSmartPointer<vtkUnstructuredGrid> readGrid(const std::string& rel) {
   r->Update();
   if (r->GetOutput()->GetNumberOfCells() == 0) return nullptr;
   return vtkSmartPointer<vtkUnstructuredGrid>(r->GetOutput());
+}
+
+/// A grid's cells as the engine's CellSet (points as doubles, the grid's cell order).
+inline mtree::CellSet cellSet(vtkUnstructuredGrid* g) {
+  const vtkIdType np = g->GetNumberOfPoints(), nc = g->GetNumberOfCells();
+  std::vector<double> pts(static_cast<size_t>(np) * 3);
+  for (vtkIdType i = 0; i < np; ++i) g->GetPoint(i, &pts[3 * i]);
+  std::vector<uint32_t> off(static_cast<size_t>(nc) + 1, 0), conn;
+  std::vector<uint8_t> types(static_cast<size_t>(nc));
+  vtkNew<vtkIdList> ids;
+  for (vtkIdType c = 0; c < nc; ++c) {
+    types[c] = static_cast<uint8_t>(g->GetCellType(c));
+    g->GetCellPoints(c, ids);
+    for (vtkIdType k = 0; k < ids->GetNumberOfIds(); ++k) conn.push_back(static_cast<uint32_t>(ids->GetId(k)));
+    off[c + 1] = static_cast<uint32_t>(conn.size());
+  }
+  return mtree::CellSet(std::move(pts), std::move(off), std::move(conn), std::move(types));
 }
 
 }  // namespace mtest

@@ -79,6 +79,7 @@ class CellSet {
     if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 || off_.back() != conn_.size())
       throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
     validate();
+    dropUniformOffsets();
     computeBounds(threads);
   }
   /// The same from 64-bit offsets and connectivity (converted; see above for the limits).
@@ -89,9 +90,13 @@ class CellSet {
 
   size_t size() const { return types_.size(); }
   uint8_t type(size_t c) const { return types_[c]; }
-  int64_t numCellPoints(size_t c) const { return int64_t(off_[c + 1]) - int64_t(off_[c]); }
-  const uint32_t* cellPointIds(size_t c) const { return conn_.data() + off_[c]; }
-  Vec3 cellPoint(size_t c, int64_t k) const { return Vec3(&pts_[3 * size_t(conn_[off_[c] + k])]); }
+  int64_t numCellPoints(size_t c) const {
+    return uniform_ >= 0 ? uniform_ : int64_t(off_[c + 1]) - int64_t(off_[c]);
+  }
+  const uint32_t* cellPointIds(size_t c) const { return conn_.data() + firstPoint(c); }
+  Vec3 cellPoint(size_t c, int64_t k) const { return Vec3(&pts_[3 * size_t(conn_[firstPoint(c) + k])]); }
+  /// Whether the offsets were dropped because every cell has the same number of points.
+  bool uniformCellSize() const { return uniform_ >= 0; }
 
   /// Cached bounds as 6 floats (xmin xmax ymin ymax zmin zmax, VTK's order), rounded outwards
   /// so they contain the exact bounds; higher-order and polyhedral cells are padded by 5% of
@@ -232,7 +237,8 @@ class CellSet {
   }
 
   const std::vector<double>& points() const { return pts_; }
-  /// Bytes held: points, offsets, connectivity, types and cached bounds.
+  /// Bytes held: points, offsets (none when every cell has the same number of points: the
+  /// offsets are then c x that number), connectivity, types and cached bounds.
   size_t bytes() const {
     return pts_.size() * sizeof(double) + (off_.size() + conn_.size()) * sizeof(uint32_t) + types_.size() +
            box_.size() * sizeof(float);
@@ -241,10 +247,13 @@ class CellSet {
  private:
   static std::vector<uint32_t> narrow(const std::vector<int64_t>& v, const char* what);
   void validate() const;
+  void dropUniformOffsets();
+  size_t firstPoint(size_t c) const { return uniform_ >= 0 ? size_t(uniform_) * c : size_t(off_[c]); }
   void computeBounds(int threads);
 
   std::vector<double> pts_;
   std::vector<uint32_t> off_, conn_;
+  int64_t uniform_ = -1;  // >= 0: every cell has this many points and off_ is released
   std::vector<uint8_t> types_;
   std::vector<float> box_;  // 6 per cell
   Vec3 maxExt_;

@@ -1,0 +1,102 @@
+// CellSet storage: a grid whose cells all have the same number of points keeps no offsets (cell
+// c starts at c x k in the connectivity); every accessor answers as with the offsets, and the
+// tree built over it is the same. Mixed grids keep their offsets.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "mtree/builder.h"
+#include "mtree/cells.h"
+#include "test_util.h"
+#include "vtk_grid_util.h"
+
+namespace {
+
+using mtree::CellSet;
+
+/// Every accessor of `cells` against the offsets `off` and connectivity `conn` it was made of.
+void expectCellsAsGiven(const CellSet& cells, const std::vector<uint32_t>& off, const std::vector<uint32_t>& conn,
+                        const std::string& what) {
+  SCOPED_TRACE(what);
+  ASSERT_EQ(cells.size() + 1, off.size());
+  for (size_t c = 0; c < cells.size(); ++c) {
+    ASSERT_EQ(cells.numCellPoints(c), int64_t(off[c + 1]) - int64_t(off[c])) << "cell " << c;
+    ASSERT_EQ(cells.cellPointIds(c), cells.cellPointIds(0) + off[c]) << "cell " << c;
+    for (int64_t k = 0; k < cells.numCellPoints(c); ++k) {
+      const mtree::Vec3 p = cells.cellPoint(c, k);
+      const double* q = &cells.points()[3 * size_t(conn[off[c] + k])];
+      ASSERT_TRUE(p.x == q[0] && p.y == q[1] && p.z == q[2]) << "cell " << c << " point " << k;
+    }
+  }
+}
+
+struct Arrays {
+  std::vector<double> pts;
+  std::vector<uint32_t> off, conn;
+  std::vector<uint8_t> types;
+};
+
+Arrays arraysOf(vtkUnstructuredGrid* g) {
+  Arrays a;
+  const mtree::CellSet cells = mtest::cellSet(g);
+  a.pts = cells.points();
+  a.off.push_back(0);
+  for (size_t c = 0; c < cells.size(); ++c) {
+    const uint32_t* ids = cells.cellPointIds(c);
+    a.conn.insert(a.conn.end(), ids, ids + cells.numCellPoints(c));
+    a.off.push_back(static_cast<uint32_t>(a.conn.size()));
+    a.types.push_back(cells.type(c));
+  }
+  return a;
+}
+
+TEST(CellSet, SingleTypeGridsKeepNoOffsets) {
+  for (const char* rel : {"cfd/pipe_flow_tets.vtu", "cfd/brick_hex.su2", "cfd/brick_tets.su2"}) {
+    vtkSmartPointer<vtkUnstructuredGrid> g = mtest::readGrid(rel);
+    ASSERT_TRUE(g) << rel;
+    const Arrays a = arraysOf(g);
+    const CellSet cells(a.pts, a.off, a.conn, a.types);
+    EXPECT_TRUE(cells.uniformCellSize()) << rel;
+    const size_t expected = a.pts.size() * sizeof(double) + a.conn.size() * sizeof(uint32_t) + a.types.size() +
+                            6 * sizeof(float) * cells.size();
+    EXPECT_EQ(cells.bytes(), expected) << rel << ": no offsets counted";
+    expectCellsAsGiven(cells, a.off, a.conn, rel);
+  }
+}
+
+TEST(CellSet, MixedGridKeepsOffsetsAndBuildsTheSameTree) {
+  // brick_tets with one hexahedron of brick_hex's first cell's points appended: mixed sizes.
+  vtkSmartPointer<vtkUnstructuredGrid> g = mtest::readGrid("cfd/brick_tets.su2");
+  ASSERT_TRUE(g);
+  Arrays a = arraysOf(g);
+  const std::vector<uint32_t> hex = {a.conn[0], a.conn[1], a.conn[2], a.conn[3], a.conn[4], a.conn[5], a.conn[6], a.conn[7]};
+  a.conn.insert(a.conn.end(), hex.begin(), hex.end());
+  a.off.push_back(static_cast<uint32_t>(a.conn.size()));
+  a.types.push_back(mtree::kHexahedron);
+  const CellSet mixed(a.pts, a.off, a.conn, a.types);
+  EXPECT_FALSE(mixed.uniformCellSize());
+  EXPECT_EQ(mixed.bytes(), a.pts.size() * sizeof(double) + (a.off.size() + a.conn.size()) * sizeof(uint32_t) +
+                               a.types.size() + 6 * sizeof(float) * mixed.size());
+  expectCellsAsGiven(mixed, a.off, a.conn, "mixed");
+
+  // The uniform part alone, without offsets, builds the tree a mixed-size copy of it builds:
+  // an empty cell (no points) appended keeps the offsets there and is in no leaf.
+  Arrays t = arraysOf(g);
+  const CellSet uniform(t.pts, t.off, t.conn, t.types);
+  t.off.push_back(t.off.back());
+  t.types.push_back(mtree::kEmptyCell);
+  const CellSet withEmpty(t.pts, t.off, t.conn, t.types);
+  ASSERT_TRUE(uniform.uniformCellSize());
+  ASSERT_FALSE(withEmpty.uniformCellSize());
+  for (mtree::TreeKind kind : {mtree::TreeKind::Octree, mtree::TreeKind::RegularKd}) {
+    mtree::BuildOptions o;
+    o.kind = kind;
+    mtree::MatrixTree a1, a2;
+    mtree::MatrixTreeBuilder<CellSet>::build(uniform, o, a1, nullptr);
+    mtree::MatrixTreeBuilder<CellSet>::build(withEmpty, o, a2, nullptr);
+    mtest::expectSameTree(a1, a2, mtree::treeKindName(kind));
+  }
+}
+
+}  // namespace
