@@ -88,6 +88,16 @@ void CellSet::dropUniformOffsets() {
   std::vector<uint32_t>().swap(off_);
 }
 
+void CellSet::keepFloatPointsIfExact() {
+  // Grids read from float arrays (most VTK files) arrive here widened to doubles: kept as
+  // floats they take half the memory and give back the very same doubles.
+  for (double x : pts_)
+    if (static_cast<double>(static_cast<float>(x)) != x) return;
+  ptsF_.assign(pts_.begin(), pts_.end());
+  std::vector<double>().swap(pts_);
+  floatPoints_ = true;
+}
+
 namespace {
 // The float nearest x on the side of `dir` (-1: not above x, +1: not below x).
 inline float roundOut(double x, int dir) {

@@ -66,7 +66,14 @@ void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const std
   put(S.prims, prims.data(), prims.size() * sizeof(uint32_t), "cell indices");
   put(S.geom, flat.geom.data(), flat.geom.size() * sizeof(double), "tree geometry");
   put(S.boxes, leafBoxes.data(), leafBoxes.size(), "quantized leaf boxes");
-  put(S.pts, cells.points().data(), cells.points().size() * sizeof(double), "cell points");
+  std::vector<double> pts(3 * cells.numPoints());  // the device reads doubles
+  for (size_t i = 0; i < cells.numPoints(); ++i) {
+    const Vec3 p = cells.point(i);
+    pts[3 * i] = p.x;
+    pts[3 * i + 1] = p.y;
+    pts[3 * i + 2] = p.z;
+  }
+  put(S.pts, pts.data(), pts.size() * sizeof(double), "cell points");
   put(S.offsets, offsets.data(), offsets.size() * sizeof(uint32_t), "cell offsets");
   put(S.conn, conn.data(), conn.size() * sizeof(uint32_t), "cell connectivity");
   put(S.types, types.data(), types.size(), "cell types");

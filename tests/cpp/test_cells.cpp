@@ -1,6 +1,6 @@
 // CellSet storage: a grid whose cells all have the same number of points keeps no offsets (cell
-// c starts at c x k in the connectivity); every accessor answers as with the offsets, and the
-// tree built over it is the same. Mixed grids keep their offsets.
+// c starts at c x k in the connectivity); points that are all exact floats are kept as floats.
+// Every accessor answers as with the arrays given, and the tree built over it is the same.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -24,9 +24,8 @@ void expectCellsAsGiven(const CellSet& cells, const std::vector<uint32_t>& off, 
     ASSERT_EQ(cells.numCellPoints(c), int64_t(off[c + 1]) - int64_t(off[c])) << "cell " << c;
     ASSERT_EQ(cells.cellPointIds(c), cells.cellPointIds(0) + off[c]) << "cell " << c;
     for (int64_t k = 0; k < cells.numCellPoints(c); ++k) {
-      const mtree::Vec3 p = cells.cellPoint(c, k);
-      const double* q = &cells.points()[3 * size_t(conn[off[c] + k])];
-      ASSERT_TRUE(p.x == q[0] && p.y == q[1] && p.z == q[2]) << "cell " << c << " point " << k;
+      const mtree::Vec3 p = cells.cellPoint(c, k), q = cells.point(conn[off[c] + k]);
+      ASSERT_TRUE(p.x == q.x && p.y == q.y && p.z == q.z) << "cell " << c << " point " << k;
     }
   }
 }
@@ -40,7 +39,10 @@ struct Arrays {
 Arrays arraysOf(vtkUnstructuredGrid* g) {
   Arrays a;
   const mtree::CellSet cells = mtest::cellSet(g);
-  a.pts = cells.points();
+  for (size_t i = 0; i < cells.numPoints(); ++i) {
+    const mtree::Vec3 p = cells.point(i);
+    a.pts.insert(a.pts.end(), {p.x, p.y, p.z});
+  }
   a.off.push_back(0);
   for (size_t c = 0; c < cells.size(); ++c) {
     const uint32_t* ids = cells.cellPointIds(c);
@@ -58,8 +60,8 @@ TEST(CellSet, SingleTypeGridsKeepNoOffsets) {
     const Arrays a = arraysOf(g);
     const CellSet cells(a.pts, a.off, a.conn, a.types);
     EXPECT_TRUE(cells.uniformCellSize()) << rel;
-    const size_t expected = a.pts.size() * sizeof(double) + a.conn.size() * sizeof(uint32_t) + a.types.size() +
-                            6 * sizeof(float) * cells.size();
+    const size_t pointBytes = a.pts.size() * (cells.floatPoints() ? sizeof(float) : sizeof(double));
+    const size_t expected = pointBytes + a.conn.size() * sizeof(uint32_t) + a.types.size() + 6 * sizeof(float) * cells.size();
     EXPECT_EQ(cells.bytes(), expected) << rel << ": no offsets counted";
     expectCellsAsGiven(cells, a.off, a.conn, rel);
   }
@@ -76,8 +78,9 @@ TEST(CellSet, MixedGridKeepsOffsetsAndBuildsTheSameTree) {
   a.types.push_back(mtree::kHexahedron);
   const CellSet mixed(a.pts, a.off, a.conn, a.types);
   EXPECT_FALSE(mixed.uniformCellSize());
-  EXPECT_EQ(mixed.bytes(), a.pts.size() * sizeof(double) + (a.off.size() + a.conn.size()) * sizeof(uint32_t) +
-                               a.types.size() + 6 * sizeof(float) * mixed.size());
+  EXPECT_EQ(mixed.bytes(), a.pts.size() * (mixed.floatPoints() ? sizeof(float) : sizeof(double)) +
+                               (a.off.size() + a.conn.size()) * sizeof(uint32_t) + a.types.size() +
+                               6 * sizeof(float) * mixed.size());
   expectCellsAsGiven(mixed, a.off, a.conn, "mixed");
 
   // The uniform part alone, without offsets, builds the tree a mixed-size copy of it builds:
@@ -97,6 +100,40 @@ TEST(CellSet, MixedGridKeepsOffsetsAndBuildsTheSameTree) {
     mtree::MatrixTreeBuilder<CellSet>::build(withEmpty, o, a2, nullptr);
     mtest::expectSameTree(a1, a2, mtree::treeKindName(kind));
   }
+}
+
+TEST(CellSet, ExactFloatPointsAreKeptAsFloats) {
+  // pipe_flow_tets.vtu stores Float32 points: kept as floats, read back as the same doubles.
+  vtkSmartPointer<vtkUnstructuredGrid> g = mtest::readGrid("cfd/pipe_flow_tets.vtu");
+  ASSERT_TRUE(g);
+  const Arrays a = arraysOf(g);
+  const CellSet asFloats(a.pts, a.off, a.conn, a.types);
+  ASSERT_TRUE(asFloats.floatPoints());
+  ASSERT_EQ(asFloats.numPoints() * 3, a.pts.size());
+  for (size_t i = 0; i < asFloats.numPoints(); ++i) {
+    const mtree::Vec3 p = asFloats.point(i);
+    ASSERT_TRUE(p.x == a.pts[3 * i] && p.y == a.pts[3 * i + 1] && p.z == a.pts[3 * i + 2]) << "point " << i;
+  }
+  // One unused point that is no float keeps every point a double; cells, bounds and trees agree.
+  Arrays d = a;
+  d.pts.insert(d.pts.end(), {0.1, 0.2, 0.3});
+  const CellSet asDoubles(d.pts, d.off, d.conn, d.types);
+  ASSERT_FALSE(asDoubles.floatPoints());
+  EXPECT_EQ(asDoubles.bytes() - asFloats.bytes(), a.pts.size() * (sizeof(double) - sizeof(float)) + 3 * sizeof(double));
+  mtest::Rng rng(3);
+  for (size_t c = 0; c < asFloats.size(); ++c) {
+    for (int k = 0; k < 6; ++k) ASSERT_EQ(asFloats.cellBox(c)[k], asDoubles.cellBox(c)[k]) << "cell " << c;
+    const mtree::Vec3 x = asFloats.cellPoint(c, 0) * 0.7 + asFloats.cellPoint(c, 1) * (0.3 + 0.1 * rng.uniform());
+    ASSERT_EQ(asFloats.tetraMayContain(c, x, 0.01), asDoubles.tetraMayContain(c, x, 0.01)) << "cell " << c;
+  }
+  mtree::MatrixTree t1, t2;
+  mtree::MatrixTreeBuilder<CellSet>::build(asFloats, mtree::BuildOptions{}, t1, nullptr);
+  mtree::MatrixTreeBuilder<CellSet>::build(asDoubles, mtree::BuildOptions{}, t2, nullptr);
+  mtest::expectSameTree(t1, t2, "float and double points");
+  // SU2 text coordinates are no floats: kept as doubles.
+  vtkSmartPointer<vtkUnstructuredGrid> h = mtest::readGrid("cfd/brick_hex.su2");
+  ASSERT_TRUE(h);
+  EXPECT_FALSE(mtest::cellSet(h).floatPoints());
 }
 
 }  // namespace

@@ -80,6 +80,7 @@ class CellSet {
       throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
     validate();
     dropUniformOffsets();
+    keepFloatPointsIfExact();
     computeBounds(threads);
   }
   /// The same from 64-bit offsets and connectivity (converted; see above for the limits).
@@ -94,7 +95,15 @@ class CellSet {
     return uniform_ >= 0 ? uniform_ : int64_t(off_[c + 1]) - int64_t(off_[c]);
   }
   const uint32_t* cellPointIds(size_t c) const { return conn_.data() + firstPoint(c); }
-  Vec3 cellPoint(size_t c, int64_t k) const { return Vec3(&pts_[3 * size_t(conn_[firstPoint(c) + k])]); }
+  Vec3 cellPoint(size_t c, int64_t k) const { return point(conn_[firstPoint(c) + k]); }
+  size_t numPoints() const { return floatPoints_ ? ptsF_.size() / 3 : pts_.size() / 3; }
+  /// Point i, as given (points that are all exact floats are kept as floats, read back exactly).
+  Vec3 point(size_t i) const {
+    if (floatPoints_) return Vec3(ptsF_[3 * i], ptsF_[3 * i + 1], ptsF_[3 * i + 2]);
+    return Vec3(&pts_[3 * i]);
+  }
+  /// Whether the points are kept as floats (every coordinate given was exactly a float).
+  bool floatPoints() const { return floatPoints_; }
   /// Whether the offsets were dropped because every cell has the same number of points.
   bool uniformCellSize() const { return uniform_ >= 0; }
 
@@ -223,8 +232,7 @@ class CellSet {
   /// (let the exact test decide).
   bool tetraMayContain(size_t c, Vec3 p, double tol) const {
     const uint32_t* id = cellPointIds(c);
-    const Vec3 p0(&pts_[3 * size_t(id[0])]), p1(&pts_[3 * size_t(id[1])]), p2(&pts_[3 * size_t(id[2])]),
-        p3(&pts_[3 * size_t(id[3])]);
+    const Vec3 p0 = point(id[0]), p1 = point(id[1]), p2 = point(id[2]), p3 = point(id[3]);
     const Vec3 a = p1 - p0, b = p2 - p0, d = p3 - p0, r = p - p0;
     const Vec3 bd = cross(b, d);
     const double det = dot(a, bd);
@@ -236,22 +244,25 @@ class CellSet {
     return u >= lo && u <= hi && v >= lo && v <= hi && w >= lo && w <= hi && s >= lo && s <= hi;
   }
 
-  const std::vector<double>& points() const { return pts_; }
-  /// Bytes held: points, offsets (none when every cell has the same number of points: the
-  /// offsets are then c x that number), connectivity, types and cached bounds.
+  /// Bytes held: points (12 bytes each when they are all exact floats, else 24), offsets (none
+  /// when every cell has the same number of points: the offsets are then c x that number),
+  /// connectivity, types and cached bounds.
   size_t bytes() const {
-    return pts_.size() * sizeof(double) + (off_.size() + conn_.size()) * sizeof(uint32_t) + types_.size() +
-           box_.size() * sizeof(float);
+    return pts_.size() * sizeof(double) + ptsF_.size() * sizeof(float) + (off_.size() + conn_.size()) * sizeof(uint32_t) +
+           types_.size() + box_.size() * sizeof(float);
   }
 
  private:
   static std::vector<uint32_t> narrow(const std::vector<int64_t>& v, const char* what);
   void validate() const;
   void dropUniformOffsets();
+  void keepFloatPointsIfExact();
   size_t firstPoint(size_t c) const { return uniform_ >= 0 ? size_t(uniform_) * c : size_t(off_[c]); }
   void computeBounds(int threads);
 
   std::vector<double> pts_;
+  std::vector<float> ptsF_;  // instead of pts_ when every coordinate is exactly a float
+  bool floatPoints_ = false;
   std::vector<uint32_t> off_, conn_;
   int64_t uniform_ = -1;  // >= 0: every cell has this many points and off_ is released
   std::vector<uint8_t> types_;
