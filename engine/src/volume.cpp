@@ -975,6 +975,46 @@ bool cpuHasAvx2() {
 #endif
 }
 
+/// The pixels whose rays can meet the volume's box, conservatively: the rectangle around its 8
+/// corners projected onto the image, widened by 2 pixels (round-off of the projection is far
+/// below that); the whole image when a corner is not in front of a perspective eye. A pixel
+/// outside it is not set up at all: its ray would miss the box anyway (the box is convex, so it
+/// projects into the corners' hull), and its pixel stays 0 as a missing ray leaves it.
+struct PixelRect {
+  int x0, x1, y0, y1;  // inclusive
+};
+PixelRect hitRect(const VolumeGeometry& geo, const VolumeCamera& cam, const int n[3], int w, int h, double aspect,
+                  double th, Vec3 fwd, Vec3 right, Vec3 up) {
+  const PixelRect all{0, w - 1, 0, h - 1};
+  double nx0 = std::numeric_limits<double>::infinity(), nx1 = -nx0, ny0 = nx0, ny1 = -nx0;
+  for (int c = 0; c < 8; ++c) {
+    Vec3 p;
+    for (int a = 0; a < 3; ++a) p[a] = geo.origin[a] + ((c >> a) & 1 ? double(n[a] - 1) : 0.0) * geo.spacing[a];
+    const Vec3 v = p - cam.position;
+    double sx, sy;  // the corner's normalized image coordinates (-1..1 across the image)
+    if (cam.parallel) {
+      sx = dot(v, right) / (cam.parallelScale * aspect);
+      sy = dot(v, up) / cam.parallelScale;
+    } else {
+      const double z = dot(v, fwd);
+      if (!(z > 1e-6 * norm(v))) return all;  // behind or beside the eye: no bound from this view
+      sx = dot(v, right) / (z * th * aspect);
+      sy = dot(v, up) / (z * th);
+    }
+    nx0 = std::min(nx0, sx), nx1 = std::max(nx1, sx), ny0 = std::min(ny0, sy), ny1 = std::max(ny1, sy);
+  }
+  if (!std::isfinite(nx0 + nx1 + ny0 + ny1)) return all;
+  // Pixel x has nx = 2 (x + 0.5) / w - 1, so x = (nx + 1) w / 2 - 0.5.
+  const auto lo = [](double v, int size) { return int(std::max(-1.0, std::min(double(size), std::floor(v) - 2))); };
+  const auto hi = [](double v, int size) { return int(std::max(-1.0, std::min(double(size), std::ceil(v) + 2))); };
+  PixelRect r;
+  r.x0 = std::max(0, lo((nx0 + 1) * w / 2 - 0.5, w));
+  r.x1 = std::min(w - 1, hi((nx1 + 1) * w / 2 - 0.5, w));
+  r.y0 = std::max(0, lo((ny0 + 1) * h / 2 - 0.5, h));
+  r.y1 = std::min(h - 1, hi((ny1 + 1) * h / 2 - 0.5, h));
+  return r;
+}
+
 template <typename R, typename Fetch, bool Skip, bool Shade>
 void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
                 double aspect, int threads, std::vector<float>& rgba, uint64_t& samples, uint64_t& skips,
@@ -985,6 +1025,7 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   const Vec3 up = cross(right, fwd);
   const double th = std::tan(cam.viewAngle * 0.5 * 3.14159265358979323846 / 180.0);
   const double hiIdx[3] = {double(F.n[0] - 1), double(F.n[1] - 1), double(F.n[2] - 1)};
+  const PixelRect hit = hitRect(geo, cam, F.n, w, h, aspect, th, fwd, right, up);
   constexpr int TILE = 8;
   const int tx = (w + TILE - 1) / TILE, ty = (h + TILE - 1) / TILE;
   uint64_t sTotal = 0, kTotal = 0, rTotal = 0;
@@ -995,6 +1036,11 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
         float* out = rgba.data() + (size_t(y) * w + x) * 4;
+        if (x < hit.x0 || x > hit.x1 || y < hit.y0 || y > hit.y1) {  // misses the box: left 0
+          ++rTotal;
+          out[0] = out[1] = out[2] = out[3] = 0.f;
+          continue;
+        }
         const double nx = 2.0 * (x + 0.5) / w - 1.0, ny = 2.0 * (y + 0.5) / h - 1.0;
         Vec3 o, d;
         if (cam.parallel) {

@@ -162,6 +162,59 @@ TEST_F(ConstantBox, ParallelProjectionGivesBoxThickness) {
   for (int p = 0; p < 64; ++p) EXPECT_NEAR(1.0 - img.rgba[4 * p + 3], std::exp(-sigma * 4), 1e-3);
 }
 
+TEST_F(ConstantBox, EveryPixelWhoseRayCrossesTheBoxIsMarched) {
+  // renderVolume sets up only the pixels inside the box's projected corners (plus a margin): every
+  // pixel whose ray crosses the box over a few samples must still see it, the others nothing.
+  // The rays are built here as renderVolume builds them. Views: far, close, wide, from inside,
+  // with corners behind the eye, non-square images, parallel.
+  opt.sampleDistance = 0.02;
+  std::vector<VolumeCamera> cams = {lookAt({-12, 9, -14}, {5, 1.5, 0}, 40, 30),
+                                    lookAt({11.5, 3.5, 2.5}, {5, 1.5, 0}, 30, 40, 100),
+                                    lookAt({5, 1.5, 0}, {20, 3, 1}, 24, 24, 120),
+                                    lookAt({-0.5, 1.5, 0}, {20, 1.5, 0}, 32, 20, 150),
+                                    lookAt({30, 30, 30}, {5, 1.5, 0}, 36, 28, 8)};
+  VolumeCamera par = lookAt({5, 10, 1}, {5, 0, 0}, 30, 22);
+  par.parallel = true;
+  par.parallelScale = 4.0;
+  cams.push_back(par);
+  const double hiIdx[3] = {10, 6, 4};
+  int seen = 0, c = 0;
+  for (const VolumeCamera& cam : cams) {
+    const VolumeImage img = renderVolume(vol, geo, tf, cam, opt);
+    const Vec3 fwd = normalized(cam.focalPoint - cam.position), right = normalized(cross(fwd, cam.viewUp));
+    const Vec3 up = cross(right, fwd);
+    const double th = std::tan(cam.viewAngle * 0.5 * 3.14159265358979323846 / 180.0);
+    const double aspect = double(cam.width) / cam.height;
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x) {
+        const double nx = 2.0 * (x + 0.5) / cam.width - 1.0, ny = 2.0 * (y + 0.5) / cam.height - 1.0;
+        const Vec3 o = cam.parallel ? cam.position + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale)
+                                    : cam.position;
+        const Vec3 d = cam.parallel ? fwd : normalized(fwd + right * (nx * th * aspect) + up * (ny * th));
+        double t0 = 0, t1 = 1e300;
+        for (int a = 0; a < 3; ++a) {
+          const double ro = (o[a] - geo.origin[a]) / geo.spacing[a], rd = d[a] / geo.spacing[a];
+          if (rd == 0) {
+            if (ro < 0 || ro > hiIdx[a]) t1 = -1;
+            continue;
+          }
+          const double ta = (0 - ro) / rd, tb = (hiIdx[a] - ro) / rd;
+          t0 = std::max(t0, std::min(ta, tb));
+          t1 = std::min(t1, std::max(ta, tb));
+        }
+        const float alpha = img.rgba[(size_t(y) * cam.width + x) * 4 + 3];
+        if (t1 - t0 > 0.1) {
+          ++seen;
+          EXPECT_GT(alpha, 0.f) << "camera " << c << " pixel " << x << " " << y << ": crosses the box over " << t1 - t0;
+        } else if (t1 < t0) {
+          EXPECT_EQ(alpha, 0.f) << "camera " << c << " pixel " << x << " " << y << ": misses the box";
+        }
+      }
+    ++c;
+  }
+  EXPECT_GT(seen, 1500);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Block-sparse storage against the dense array.
 
