@@ -270,6 +270,12 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     vtkErrorMacro("BuildLocator: more than 2^32 - 1 points are not supported.");
     return;
   }
+  // Threads of the whole build, the copies below included: as set, or (0) one per 32k cells up
+  // to all: below that a parallel region's start and barriers cost more than the work, and far
+  // more on a loaded machine.
+  const int buildThreads = this->NumberOfThreads > 0
+    ? this->NumberOfThreads
+    : static_cast<int>(std::min<vtkIdType>(omp_get_max_threads(), std::max<vtkIdType>(1, nc / 32768)));
   std::vector<uint32_t> offsets(static_cast<size_t>(nc) + 1, 0), conn;
   std::vector<uint8_t> types(static_cast<size_t>(nc));
   vtkUnstructuredGrid* ug = vtkUnstructuredGrid::SafeDownCast(ds);
@@ -292,12 +298,12 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
       }
       conn.resize(static_cast<size_t>(m));
       // Negative or too large values are caught by the CellSet's range check (as 2^32 - 1).
-#pragma omp parallel for schedule(static) if (m > 65536)
+#pragma omp parallel for num_threads(buildThreads) schedule(static) if (m > 65536)
       for (vtkIdType k = 0; k < m; ++k)
       {
         conn[k] = (cc[k] < 0 || static_cast<long long>(cc[k]) >= np) ? 0xffffffffu : static_cast<uint32_t>(cc[k]);
       }
-#pragma omp parallel for schedule(static) if (nc > 65536)
+#pragma omp parallel for num_threads(buildThreads) schedule(static) if (nc > 65536)
       for (vtkIdType c = 0; c <= nc; ++c)
       {
         offsets[c] = static_cast<uint32_t>(o[c]);
@@ -348,11 +354,6 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
   opt.maxCandidates = this->MaxCandidates;
   opt.sort = this->BuildSort == RADIX ? mtree::BuildSort::Radix : mtree::BuildSort::Counting;
-  // Threads: as set, or (0) one per 32k cells up to all: below that a parallel region's
-  // start and barriers cost more than the work, and far more on a loaded machine.
-  const int buildThreads = this->NumberOfThreads > 0
-    ? this->NumberOfThreads
-    : static_cast<int>(std::min<vtkIdType>(omp_get_max_threads(), std::max<vtkIdType>(1, nc / 32768)));
   opt.threads = buildThreads;
   double convertMs2 = 0;
   try
