@@ -108,6 +108,37 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
       }
 }
 
+// Cell `id` into `cell` from the engine's copy: the same type, point ids and coordinates as
+// vtkDataSet::GetCell (the copy holds the dataset's values exactly: doubles, or floats where every
+// coordinate is one), without touching VTK's own connectivity and point arrays — for a random
+// query those are a second set of cache misses on data the scan has just read. Linear types
+// only; the others (and a cell needing VTK's initialisation) go through GetCell.
+void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType id, vtkGenericCell* cell)
+{
+  const uint8_t type = in.Cells.type(static_cast<size_t>(id));
+  if (type < VTK_VERTEX || type > VTK_PYRAMID)
+  {
+    ds->GetCell(id, cell);
+    return;
+  }
+  cell->SetCellType(type);
+  if (cell->RequiresInitialization() || cell->RequiresExplicitFaceRepresentation())
+  {
+    ds->GetCell(id, cell);
+    return;
+  }
+  const vtkIdType n = static_cast<vtkIdType>(in.Cells.numCellPoints(static_cast<size_t>(id)));
+  const uint32_t* pid = in.Cells.cellPointIds(static_cast<size_t>(id));
+  cell->PointIds->SetNumberOfIds(n);
+  cell->Points->SetNumberOfPoints(n);
+  for (vtkIdType k = 0; k < n; ++k)
+  {
+    cell->PointIds->SetId(k, static_cast<vtkIdType>(pid[k]));
+    const mtree::Vec3 p = in.Cells.cellPoint(static_cast<size_t>(id), k);
+    cell->Points->SetPoint(k, p.x, p.y, p.z);
+  }
+}
+
 // vtkTetra::EvaluatePosition accepts barycentric coordinates within this of [0, 1].
 constexpr double kTetraTolerance = 1e-3;
 
@@ -143,7 +174,7 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     {
       continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
     }
-    ds->GetCell(id, cell);
+    FillCell(ds, in, id, cell);
     if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
     {
       return id;
@@ -506,7 +537,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
             }
             continue;
           }
-          this->DataSet->GetCell(id, cell);
+          FillCell(this->DataSet, in, id, cell);
           if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
           {
             best = tt;
@@ -523,7 +554,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     {
       break;
     }
-    this->DataSet->GetCell(deferredId, cell);
+    FillCell(this->DataSet, in, deferredId, cell);
     if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
     {
       if (bestId < 0 || tt < best)
@@ -543,7 +574,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   }
   t = best;
   cellId = bestId;
-  this->DataSet->GetCell(bestId, cell);
+  FillCell(this->DataSet, in, bestId, cell);
   return 1;
 }
 

@@ -60,6 +60,33 @@ def test_find_cell_agrees_with_vtk_cell_locator(grid, tree):
     assert disagreements == 0
 
 
+@pytest.mark.parametrize("grid", GRIDS)
+def test_find_cell_fills_the_generic_cell_as_vtk_does(grid):
+    """FindCell fills the generic cell from the locator's own copy of the cells (not through
+    vtkDataSet::GetCell): type, point ids, coordinates, pcoords and weights must be VTK's, bit for
+    bit, for every cell type of the six grids (float and double points)."""
+    ds = matrixtree.read_grid(os.path.join(CFD, grid))
+    ours = build(vtkMatrixTreeLocator, ds)
+    ref = vtkGenericCell()
+    gc = vtkGenericCell()
+    checked = 0
+    for p in random_points(ds, 3000, seed=23, grow=0.0):
+        pc, w = [0.0] * 3, [0.0] * 8
+        cid = ours.FindCell(list(p), 0.0, gc, pc, w)
+        if cid < 0:
+            continue
+        ds.GetCell(cid, ref)
+        n = ref.GetNumberOfPoints()
+        assert gc.GetCellType() == ref.GetCellType()
+        assert [gc.GetPointId(k) for k in range(n)] == [ref.GetPointId(k) for k in range(n)]
+        assert [gc.GetPoints().GetPoint(k) for k in range(n)] == [ref.GetPoints().GetPoint(k) for k in range(n)]
+        cp, rpc, rw = [0.0] * 3, [0.0] * 3, [0.0] * n
+        assert ref.EvaluatePosition(list(p), cp, reference(0), rpc, reference(0.0), rw) == 1
+        assert pc == rpc and w[:n] == rw
+        checked += 1
+    assert checked > 500
+
+
 def test_probe_filter_with_prototype_matches_vtk():
     """vtkProbeFilter calls NewInstance() on the prototype: the defaults must work."""
     from vtkmodules.vtkFiltersCore import vtkProbeFilter
