@@ -1026,6 +1026,20 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   const double th = std::tan(cam.viewAngle * 0.5 * 3.14159265358979323846 / 180.0);
   const double hiIdx[3] = {double(F.n[0] - 1), double(F.n[1] - 1), double(F.n[2] - 1)};
   const PixelRect hit = hitRect(geo, cam, F.n, w, h, aspect, th, fwd, right, up);
+  // What depends on the column or the row only, computed once (the same expressions as per pixel):
+  // nx, ny; a perspective ray's direction terms right * (nx th aspect), up * (ny th); its origin.
+  std::vector<double> nxs(static_cast<size_t>(w)), nys(static_cast<size_t>(h));
+  std::vector<Vec3> rightX(static_cast<size_t>(w)), upY(static_cast<size_t>(h));
+  for (int x = 0; x < w; ++x) {
+    nxs[size_t(x)] = 2.0 * (x + 0.5) / w - 1.0;
+    rightX[size_t(x)] = right * (nxs[size_t(x)] * th * aspect);
+  }
+  for (int y = 0; y < h; ++y) {
+    nys[size_t(y)] = 2.0 * (y + 0.5) / h - 1.0;
+    upY[size_t(y)] = up * (nys[size_t(y)] * th);
+  }
+  double roEye[3];
+  for (int a = 0; a < 3; ++a) roEye[a] = (pos[a] - geo.origin[a]) / geo.spacing[a];
   constexpr int TILE = 8;
   const int tx = (w + TILE - 1) / TILE, ty = (h + TILE - 1) / TILE;
   uint64_t sTotal = 0, kTotal = 0, rTotal = 0;
@@ -1041,20 +1055,20 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
           out[0] = out[1] = out[2] = out[3] = 0.f;
           continue;
         }
-        const double nx = 2.0 * (x + 0.5) / w - 1.0, ny = 2.0 * (y + 0.5) / h - 1.0;
+        const double nx = nxs[size_t(x)], ny = nys[size_t(y)];
         Vec3 o, d;
         if (cam.parallel) {
           o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
           d = fwd;
         } else {
           o = pos;
-          d = normalized(fwd + right * (nx * th * aspect) + up * (ny * th));
+          d = normalized(fwd + rightX[size_t(x)] + upY[size_t(y)]);
         }
         double ro[3], rd[3];
         double t0 = 0, t1 = std::numeric_limits<double>::infinity();
         bool miss = false;
         for (int a = 0; a < 3; ++a) {
-          ro[a] = (o[a] - geo.origin[a]) / geo.spacing[a];
+          ro[a] = cam.parallel ? (o[a] - geo.origin[a]) / geo.spacing[a] : roEye[a];
           rd[a] = d[a] / geo.spacing[a];
           if (rd[a] == 0) {
             if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
