@@ -10,6 +10,7 @@
 #include "vtkObjectFactory.h"
 #include "vtkPiecewiseFunction.h"
 #include "vtkPointData.h"
+#include "vtkSmartPointer.h"
 #include "vtkStreamingDemandDrivenPipeline.h"
 #include "vtkUnsignedCharArray.h"
 
@@ -42,6 +43,13 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   std::string CLSelector;
   std::string CLDeviceName;
   bool CLUploaded = false;
+
+  // The output arrays, kept across renders and reused when nothing else holds them (the pipeline
+  // releases the previous output's arrays before RequestData): a frame then writes into memory
+  // already mapped instead of 5 fresh MB (page faults), and the CPU backend renders straight
+  // into RGBAFloat.
+  vtkSmartPointer<vtkFloatArray> RGBAFloat;
+  vtkSmartPointer<vtkUnsignedCharArray> RGBA;
 };
 
 vtkStandardNewMacro(vtkMatrixTreeVolumeRayCaster);
@@ -338,6 +346,23 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     ro.specular = this->Specular;
     ro.specularPower = this->SpecularPower;
     ro.threads = this->NumberOfThreads;
+    const vtkIdType npix = vtkIdType(w) * h;
+    if (!in.RGBAFloat || in.RGBAFloat->GetReferenceCount() > 1 || in.RGBAFloat->GetNumberOfTuples() != npix)
+    {
+      in.RGBAFloat = vtkSmartPointer<vtkFloatArray>::New();
+      in.RGBAFloat->SetName("RGBAFloat");
+      in.RGBAFloat->SetNumberOfComponents(4);
+      in.RGBAFloat->SetNumberOfTuples(npix);
+    }
+    if (!in.RGBA || in.RGBA->GetReferenceCount() > 1 || in.RGBA->GetNumberOfTuples() != npix)
+    {
+      in.RGBA = vtkSmartPointer<vtkUnsignedCharArray>::New();
+      in.RGBA->SetName("RGBA");
+      in.RGBA->SetNumberOfComponents(4);
+      in.RGBA->SetNumberOfTuples(npix);
+    }
+    float* fp = in.RGBAFloat->GetPointer(0);
+    unsigned char* up = in.RGBA->GetPointer(0);
     mtree::VolumeImage img;
     if (this->Backend == OPENCL)
     {
@@ -360,6 +385,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
           ++this->NumberOfOpenCLUploads;
         }
         img = in.CLRenderer->render(geo, table, cam, ro);
+        std::copy(img.rgba.begin(), img.rgba.end(), fp);
       }
       catch (const mtree::ocl::Error& e)
       {
@@ -372,31 +398,21 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     }
     else
     {
-      img = mtree::renderVolume(in.Volume, geo, table, cam, ro);
+      img = mtree::renderVolume(in.Volume, geo, table, cam, ro, fp);
     }
     this->LastRenderTime = img.ms;
     this->NumberOfSamples = static_cast<vtkIdType>(img.samples);
     this->NumberOfSkips = static_cast<vtkIdType>(img.skips);
 
-    const vtkIdType npix = vtkIdType(w) * h;
-    vtkNew<vtkUnsignedCharArray> u8;
-    u8->SetName("RGBA");
-    u8->SetNumberOfComponents(4);
-    u8->SetNumberOfTuples(npix);
-    vtkNew<vtkFloatArray> f32;
-    f32->SetName("RGBAFloat");
-    f32->SetNumberOfComponents(4);
-    f32->SetNumberOfTuples(npix);
-    float* fp = f32->GetPointer(0);
-    unsigned char* up = u8->GetPointer(0);
-    std::copy(img.rgba.begin(), img.rgba.end(), fp);
-    for (size_t i = 0; i < img.rgba.size(); ++i)
+    for (vtkIdType i = 0; i < 4 * npix; ++i)
     {
-      const float v = std::min(1.f, std::max(0.f, img.rgba[i]));
+      const float v = std::min(1.f, std::max(0.f, fp[i]));
       up[i] = static_cast<unsigned char>(v * 255.f + 0.5f); // round half up, no libm call
     }
-    output->GetPointData()->SetScalars(u8);
-    output->GetPointData()->AddArray(f32);
+    in.RGBAFloat->Modified();
+    in.RGBA->Modified();
+    output->GetPointData()->SetScalars(in.RGBA);
+    output->GetPointData()->AddArray(in.RGBAFloat);
   }
   catch (const std::exception& e)
   {

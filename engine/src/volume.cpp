@@ -1017,7 +1017,7 @@ PixelRect hitRect(const VolumeGeometry& geo, const VolumeCamera& cam, const int 
 
 template <typename R, typename Fetch, bool Skip, bool Shade>
 void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
-                double aspect, int threads, std::vector<float>& rgba, uint64_t& samples, uint64_t& skips,
+                double aspect, int threads, float* rgba, uint64_t& samples, uint64_t& skips,
                 uint64_t& rays) {
   const Vec3 pos = cam.position;
   const Vec3 fwd = normalized(cam.focalPoint - cam.position);
@@ -1049,7 +1049,7 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
     const int x1 = std::min(w, x0 + TILE), y1 = std::min(h, y0 + TILE);
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
-        float* out = rgba.data() + (size_t(y) * w + x) * 4;
+        float* out = rgba + (size_t(y) * w + x) * 4;
         if (x < hit.x0 || x > hit.x1 || y < hit.y0 || y > hit.y1) {  // misses the box: left 0
           ++rTotal;
           out[0] = out[1] = out[2] = out[3] = 0.f;
@@ -1098,7 +1098,7 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
 template <typename R, typename Fetch>
 void dispatch(bool skip, bool shade, const Frame& F, const Fetch& fetch, const VolumeGeometry& geo,
               const VolumeCamera& cam, int w, int h, double aspect, int threads, VolumeImage& img,
-              std::vector<float>& rgba) {
+              float* rgba) {
   if (skip && shade)
     marchImage<R, Fetch, true, true>(F, fetch, geo, cam, w, h, aspect, threads, rgba, img.samples, img.skips, img.rays);
   else if (skip)
@@ -1112,7 +1112,7 @@ void dispatch(bool skip, bool shade, const Frame& F, const Fetch& fetch, const V
 template <typename R>
 void dispatchStorage(const BlockSparseVolume& vol, bool skip, bool shade, const Frame& F, const VolumeGeometry& geo,
                      const VolumeCamera& cam, int w, int h, double aspect, int threads, VolumeImage& img,
-                     std::vector<float>& rgba) {
+                     float* rgba) {
   const int nb0 = vol.levelDim(0, 0), nb1 = vol.levelDim(0, 1);
   switch (vol.storage()) {
     case VoxelStorage::UInt8:
@@ -1189,6 +1189,15 @@ std::vector<float> stepCorrectedTable(const TransferTable& tf, double sampleDist
 
 VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
                          const VolumeCamera& cam, const VolumeRenderOptions& opt) {
+  checkVolumeRenderArguments(geo, tf, cam, opt, "renderVolume");  // before sizing the image
+  std::vector<float> rgba(size_t(cam.width) * cam.height * 4);
+  VolumeImage img = renderVolume(vol, geo, tf, cam, opt, rgba.data());
+  img.rgba = std::move(rgba);
+  return img;
+}
+
+VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
+                         const VolumeCamera& cam, const VolumeRenderOptions& opt, float* rgba) {
   const auto start = std::chrono::steady_clock::now();
   if (vol.levelCount() == 0) throw std::invalid_argument("renderVolume: the volume was not built");
   checkVolumeRenderArguments(geo, tf, cam, opt, "renderVolume");
@@ -1244,16 +1253,17 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   const int h = std::max(1, static_cast<int>(std::lround(cam.height / opt.imageSampleDistance)));
   const double aspect = double(cam.width) / cam.height;
   const int threads = resolveThreads(opt.threads);
-  std::vector<float> small(size_t(w) * h * 4);
+  // Full size: straight into rgba; else a small image, then upsampled into it.
+  const bool full = w == cam.width && h == cam.height;
+  std::vector<float> small(full ? 0 : size_t(w) * h * 4);
+  float* target = full ? rgba : small.data();
   if (opt.doublePrecision)
-    dispatchStorage<double>(vol, opt.emptySpaceSkipping, opt.shade, F, geo, cam, w, h, aspect, threads, img, small);
+    dispatchStorage<double>(vol, opt.emptySpaceSkipping, opt.shade, F, geo, cam, w, h, aspect, threads, img, target);
   else
-    dispatchStorage<float>(vol, opt.emptySpaceSkipping, opt.shade, F, geo, cam, w, h, aspect, threads, img, small);
-
-  if (w == cam.width && h == cam.height) {
-    img.rgba = std::move(small);
-  } else {
-    img.rgba = upsampleRGBA(small, w, h, cam.width, cam.height, threads);
+    dispatchStorage<float>(vol, opt.emptySpaceSkipping, opt.shade, F, geo, cam, w, h, aspect, threads, img, target);
+  if (!full) {
+    const std::vector<float> up = upsampleRGBA(small, w, h, cam.width, cam.height, threads);
+    std::copy(up.begin(), up.end(), rgba);
   }
   img.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return img;

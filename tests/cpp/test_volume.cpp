@@ -450,6 +450,27 @@ TEST(VolumeRender, ImageSampleDistanceInterpolatesACoarseImage) {
   EXPECT_LT(err / sum, 0.25);
 }
 
+TEST(VolumeRender, RenderingIntoACallerBufferGivesTheSameImage) {
+  // The overload the VTK filter uses (it keeps its output array across frames): full size and
+  // with an image sample distance (rendered small, then upsampled into the buffer).
+  const Dense d = blobs(30, 26, 22, 5);
+  const TransferTable tf = rampTable(0, 100, 0.3, 0.5);
+  BlockSparseVolume vol;
+  vol.build(d.v.data(), d.n, tf);
+  const VolumeCamera cam = lookAt({15, 40, -50}, {15, 13, 11}, 40, 30);
+  for (double isd : {1.0, 2.5}) {
+    VolumeRenderOptions opt;
+    opt.imageSampleDistance = isd;
+    const VolumeImage a = renderVolume(vol, VolumeGeometry(), tf, cam, opt);
+    std::vector<float> buf(size_t(40) * 30 * 4, -1.f);  // stale content must be overwritten
+    const VolumeImage b = renderVolume(vol, VolumeGeometry(), tf, cam, opt, buf.data());
+    EXPECT_TRUE(b.rgba.empty());
+    EXPECT_EQ(a.rgba, buf) << "image sample distance " << isd;
+    EXPECT_EQ(a.samples, b.samples);
+    EXPECT_EQ(a.rays, b.rays);
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Bad input: a clear exception, never a crash.
 

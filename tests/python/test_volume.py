@@ -204,3 +204,39 @@ def test_vectorized_marcher_equals_sse2_marcher_on_real_volumes(name, monkeypatc
             assert np.array_equal(a, c), (name, skip, float(np.abs(a - c).max()))
             assert (sa["samples"], sa["skips"]) == (sc["samples"], sc["skips"])
             assert a[..., 3].max() > 0.05
+
+
+def test_filter_output_arrays_are_reused_only_when_nobody_holds_them():
+    """The filter keeps its output arrays across renders and writes the next frame into them,
+    unless something else still holds them: an array taken from an earlier output keeps its image."""
+    im = matrixtree.read_volume(os.path.join(VOLUMES, "HeadMRVolume.mhd"))
+    ctf, otf = matrixtree.default_transfer_functions(im)
+    cams = [matrixtree.frame_camera(im), matrixtree.frame_camera(im, azimuth=120, elevation=-30)]
+
+    def caster():
+        c = vtkMatrixTreeVolumeRayCaster()
+        c.SetInputData(im)
+        c.SetColorTransferFunction(ctf)
+        c.SetScalarOpacity(otf)
+        c.SetImageSize(40, 32)
+        return c
+
+    def frame(c, cam):
+        c.SetCamera(cam)
+        c.Update()
+        return c.GetOutput().GetPointData().GetArray("RGBAFloat")
+
+    # Nobody holds the arrays between frames: reused, and each frame equals a fresh filter's.
+    c = caster()
+    images = [vtk_to_numpy(frame(c, cam)).copy() for cam in cams + cams]
+    for cam, img in zip(cams, images[:2]):
+        assert np.array_equal(img, vtk_to_numpy(frame(caster(), cam)))
+    assert np.array_equal(images[0], images[2]) and np.array_equal(images[1], images[3])
+    assert not np.array_equal(images[0], images[1])
+    assert images[0][:, 3].max() > 0.05
+    # An array held from an earlier frame is not written by the next one.
+    held = frame(c, cams[0])
+    before = vtk_to_numpy(held).copy()
+    after = frame(c, cams[1])
+    assert np.array_equal(vtk_to_numpy(held), before)
+    assert not np.array_equal(vtk_to_numpy(after), before)

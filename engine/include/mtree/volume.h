@@ -273,6 +273,10 @@ struct VolumeImage {
 /// a zero spacing, a non-positive sample distance or image size, or a degenerate camera.
 VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
                          const VolumeCamera& cam, const VolumeRenderOptions& opt);
+/// The same into `rgba`, cam.width * cam.height * 4 floats owned by the caller (e.g. a buffer kept
+/// across frames: no allocation and no fresh pages per frame); the returned image's rgba is empty.
+VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo, const TransferTable& tf,
+                         const VolumeCamera& cam, const VolumeRenderOptions& opt, float* rgba);
 
 /// renderVolume's argument checks, shared by the CPU and the OpenCL renderers: throws
 /// std::invalid_argument, the message starting with `who`, on an empty table, a zero or
