@@ -459,6 +459,16 @@ inline bool composite(const Frame& F, const float cc[8], R fx, R fy, R fz, const
   return acc.alpha() >= R(F.threshold);
 }
 
+/// The coarsest empty ancestor of brick (bi, bj, bk) as a level (0: the brick itself), or -1 when
+/// the brick may be visible. Levels are ORs of their children: climb while empty.
+inline int coarsestInvisible(const BlockSparseVolume& vol, int levels, int bi, int bj, int bk) {
+  if (vol.nodeVisible(0, bi, bj, bk)) return -1;
+  int empty = 0;
+  while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
+    ++empty;
+  return empty;
+}
+
 /// Marches one ray over samples k = 0..kEnd at t_k = t0 + k dt, position o + d t_k (index
 /// space, double, the arithmetic of opencl/volume.cl, so both back ends see the same samples).
 /// The ray is walked brick by brick: at sample k the brick is looked up (and, skipping, its
@@ -481,13 +491,7 @@ void march(const Frame& F, Fetch fetch, const double o[3], const double d[3], do
       cell[a] = clampCell(o[a] + d[a] * t, F.n[a], f);
     }
     const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
-    // Coarsest empty ancestor (levels are ORs of their children: climb while empty).
-    int empty = -1;
-    if (Skip && !vol.nodeVisible(0, bi, bj, bk)) {
-      empty = 0;
-      while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
-        ++empty;
-    }
+    const int empty = Skip ? coarsestInvisible(vol, levels, bi, bj, bk) : -1;
     const int L = empty < 0 ? 0 : empty;
     const double edge = double(DIM << L);
     const double lo[3] = {double(bi >> L) * edge, double(bj >> L) * edge, double(bk >> L) * edge};
@@ -635,14 +639,8 @@ inline bool apronEnter(const Frame& F, const ApronRay& ray, int levels, int64_t 
   alignas(16) int cell[4];
   _mm_store_si128(reinterpret_cast<__m128i*>(cell), ray.cells(ray.at(float(k))));
   const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
-  int empty = -1;
-  if (Skip && !vol.nodeVisible(0, bi, bj, bk)) {
-    empty = 0;
-    while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
-      ++empty;
-  } else if (!fetch.enter(bi, bj, bk)) {
-    empty = 0;
-  }
+  int empty = Skip ? coarsestInvisible(vol, levels, bi, bj, bk) : -1;
+  if (empty < 0 && !fetch.enter(bi, bj, bk)) empty = 0;  // visible, but no brick stored
   if (empty < 0) {
     o[0] = bi << LOG2DIM;
     o[1] = bj << LOG2DIM;
