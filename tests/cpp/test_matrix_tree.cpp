@@ -381,20 +381,7 @@ TEST_P(RealMeshTree, DeterministicAcrossThreadCounts) {
   const MatrixTree& r = trees[0];
   for (size_t k = 1; k < trees.size(); ++k) {
     const MatrixTree& t = trees[k];
-    SCOPED_TRACE("threads index " + std::to_string(k));
-    ASSERT_EQ(t.height(), r.height());
-    EXPECT_TRUE(t.primitiveIndices() == r.primitiveIndices());
-    EXPECT_TRUE(t.leafLevel().pointers() == r.leafLevel().pointers());
-    const auto& a = t.leafLevel().data();
-    const auto& b = r.leafLevel().data();
-    ASSERT_EQ(a.size(), b.size());
-    size_t diff = 0;
-    for (size_t i = 0; i < a.size(); ++i) diff += a[i].begin != b[i].begin || a[i].end != b[i].end;
-    EXPECT_EQ(diff, 0u) << "leaf ranges differ";
-    for (int l = 0; l < r.height(); ++l) {
-      EXPECT_TRUE(t.innerLevel(l).pointers() == r.innerLevel(l).pointers()) << "level " << l;
-      EXPECT_TRUE(t.innerLevel(l).data() == r.innerLevel(l).data()) << "level " << l;
-    }
+    mtest::expectSameTree(t, r, "threads index " + std::to_string(k));
     EXPECT_EQ(t.bytes(), r.bytes());
   }
   // And the tree of the fixture (default thread count) is the same tree.
