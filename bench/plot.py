@@ -6,6 +6,9 @@
 build_phases.png: per scene, the median build time of the matrix octree and kd-tree split into
 the §5.1 phases (the paper's Figure 4), next to VTK's locators built in the same run.
 height_sweep.png: render and build time against the tree height per scene, auto height marked.
+locator_ratios.png: per grid and mesh, the matrix octree's FindCell and ray speed-ups, build
+time and memory as ratios to vtkStaticCellLocator (bench/locators.py JSON), with the issue's
+target for each (5x, 10x, no slower, no larger).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import json
 import os
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -87,10 +91,42 @@ def plot_height(data, path):
     plt.close(fig)
 
 
+def plot_locators(rows, path):
+    ours = [r for r in rows if r["locator"] == "matrix-octree" and r.get("backend", "cpu") == "cpu"]
+    grids = [r["grid"].rsplit(".", 1)[0] for r in ours]
+    panels = [  # (column, title, target, True if higher is better)
+        ("findcell_speedup_vs_static", "FindCell speed-up (1 thread)", 5.0, True),
+        ("rays_speedup_vs_static", "IntersectWithLine speed-up", 10.0, True),
+        ("build_ratio_vs_static", "build time ratio", 1.0, False),
+        ("bytes_ratio_vs_static", "memory ratio", 1.0, False),
+    ]
+    fig, axes = plt.subplots(1, 4, figsize=(15, 4.6), sharey=False)
+    for ax, (col, title, target, higher) in zip(axes, panels):
+        vals = [r[col] for r in ours]
+        ok = [(v >= target) if higher else (v <= target) for v in vals]
+        ax.barh(range(len(vals)), vals, color=["#2a9d8f" if o else "#e76f51" for o in ok])
+        ax.axvline(target, color="k", ls="--", lw=1)
+        ax.axvline(1.0, color="0.6", lw=0.8)
+        ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_yticks(range(len(grids)))
+        ax.set_yticklabels(grids if ax is axes[0] else [""] * len(grids), fontsize=8)
+        ax.invert_yaxis()
+        ax.set_title(f"{title}\ntarget {'>=' if higher else '<='} {target:g}x (dashed)", fontsize=9)
+        for i, v in enumerate(vals):
+            ax.text(v, i, f" {v:.2f}", va="center", fontsize=7)
+    fig.suptitle("matrix octree / vtkStaticCellLocator, same run (green: target met)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--build", default=os.path.join(ROOT, "out", "bench_build.json"))
     p.add_argument("--height", default=os.path.join(ROOT, "out", "bench_height.json"))
+    p.add_argument("--locators", default=os.path.join(ROOT, "out", "bench_locators_all.json"))
     p.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
     a = p.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -102,6 +138,11 @@ def main() -> int:
         with open(a.height) as f:
             plot_height(json.load(f), os.path.join(a.out, "height_sweep.png"))
         print("wrote", os.path.join(a.out, "height_sweep.png"))
+    if os.path.exists(a.locators):
+        with open(a.locators) as f:
+            data = json.load(f)
+        plot_locators(data if isinstance(data, list) else data["rows"], os.path.join(a.out, "locator_ratios.png"))
+        print("wrote", os.path.join(a.out, "locator_ratios.png"))
     return 0
 
 
