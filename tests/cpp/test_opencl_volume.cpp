@@ -158,24 +158,12 @@ TEST(opencl_volume, SyntheticMatchesCpu) {
 
 TEST(opencl_volume, IronProteinMatchesCpu) {
   REQUIRE_DEVICE(ctx);
-  vtkNew<vtkStructuredPointsReader> r;
-  r->SetFileName(mtest::dataPath("volumes/ironProt.vtk").c_str());
-  r->Update();
-  vtkImageData* im = r->GetOutput();
-  vtkDataArray* s = im->GetPointData()->GetScalars();
-  ASSERT_NE(s, nullptr) << "cannot read " << mtest::dataPath("volumes/ironProt.vtk");
-  int dims[3];
-  im->GetDimensions(dims);
-  std::vector<float> v(size_t(s->GetNumberOfTuples()));
-  for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i) v[size_t(i)] = float(s->GetTuple1(i));
-  double range[2];
-  s->GetRange(range);
-  const TransferTable tf = rampTable(range[0], range[1], 0.4, 0.3);
+  mtest::FloatVolume fv;
+  ASSERT_TRUE(mtest::readFloatVolume("volumes/ironProt.vtk", fv)) << "cannot read ironProt.vtk";
+  const TransferTable tf = rampTable(fv.range[0], fv.range[1], 0.4, 0.3);
   BlockSparseVolume vol;
-  vol.build(v.data(), dims, tf);
-  VolumeGeometry g;
-  im->GetSpacing(g.spacing);
-  im->GetOrigin(g.origin);
+  vol.build(fv.v.data(), fv.dims, tf);
+  const VolumeGeometry& g = fv.geo;
   ocl::VolumeRenderer dev(ctx);
   dev.upload(vol);
   const VolumeCamera cam = lookAt({-60, 100, -80}, {34, 34, 34}, 96, 96);
@@ -500,18 +488,9 @@ TEST(opencl_volume, DISABLED_Timing512) {
     vols.push_back(std::move(h));
   }
   {
-    vtkNew<vtkStructuredPointsReader> r;
-    r->SetFileName(mtest::dataPath("volumes/ironProt.vtk").c_str());
-    r->Update();
-    vtkImageData* im = r->GetOutput();
-    vtkDataArray* s = im->GetPointData()->GetScalars();
-    ASSERT_NE(s, nullptr);
-    Vol p{"ironProt", {0, 0, 0}, {}, {}};
-    im->GetDimensions(p.dims);
-    for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i) p.v.push_back(float(s->GetTuple1(i)));
-    im->GetSpacing(p.g.spacing);
-    im->GetOrigin(p.g.origin);
-    vols.push_back(std::move(p));
+    mtest::FloatVolume fv;
+    ASSERT_TRUE(mtest::readFloatVolume("volumes/ironProt.vtk", fv));
+    vols.push_back(Vol{"ironProt", {fv.dims[0], fv.dims[1], fv.dims[2]}, std::move(fv.v), fv.geo});
   }
   auto median3 = [](std::vector<double> t) {
     std::sort(t.begin(), t.end());

@@ -23,11 +23,6 @@ using namespace mtree;
 
 namespace {
 
-std::string dataDir() {
-  const char* d = std::getenv("MATRIXTREE_DATA");
-  return d ? d : std::string(MATRIXTREE_SOURCE_DIR) + "/../shared/data";
-}
-
 /// White, constant opacity `alpha` per unit length over [lo, hi].
 TransferTable constantTable(double lo, double hi, float alpha, int n = 64) {
   std::vector<float> rgba;
@@ -392,27 +387,15 @@ TEST(VolumeRender, SkippingEqualsNoSkippingOnBlobs) {
 }
 
 TEST(VolumeRender, SkippingEqualsNoSkippingOnIronProtein) {
-  vtkNew<vtkStructuredPointsReader> r;
-  r->SetFileName((dataDir() + "/volumes/ironProt.vtk").c_str());
-  r->Update();
-  vtkImageData* im = r->GetOutput();
-  ASSERT_NE(im->GetPointData()->GetScalars(), nullptr);
-  int dims[3];
-  im->GetDimensions(dims);
-  vtkDataArray* s = im->GetPointData()->GetScalars();
-  std::vector<float> v(size_t(s->GetNumberOfTuples()));
-  for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i) v[size_t(i)] = float(s->GetTuple1(i));
-  double range[2];
-  s->GetRange(range);
-  const TransferTable tf = rampTable(range[0], range[1], 0.4, 0.3);
+  mtest::FloatVolume fv;
+  ASSERT_TRUE(mtest::readFloatVolume("volumes/ironProt.vtk", fv));
+  const TransferTable tf = rampTable(fv.range[0], fv.range[1], 0.4, 0.3);
   BlockSparseVolume sparse, full;
-  sparse.build(v.data(), dims, tf);
+  sparse.build(fv.v.data(), fv.dims, tf);
   VolumeBuildOptions o;
   o.sparse = false;
-  full.build(v.data(), dims, tf, o);
-  VolumeGeometry g;
-  im->GetSpacing(g.spacing);
-  im->GetOrigin(g.origin);
+  full.build(fv.v.data(), fv.dims, tf, o);
+  const VolumeGeometry& g = fv.geo;
   const VolumeCamera cam = lookAt({-60, 100, -80}, {34, 34, 34}, 40, 40);
   VolumeRenderOptions opt;
   opt.sampleDistance = 0.5;

@@ -30,11 +30,6 @@ using mtest::rampTable;
 
 namespace {
 
-std::string dataDir() {
-  const char* d = std::getenv("MATRIXTREE_DATA");
-  return d ? d : std::string(MATRIXTREE_SOURCE_DIR) + "/../shared/data";
-}
-
 /// Whether renderVolume can pick the AVX2 marcher here (the test's own view of the CPU).
 bool avx2Here() {
 #if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
@@ -176,27 +171,16 @@ TEST(VolumeSimd, RealVolumesEqualSse2) {
   const char* files[] = {"ironProt.vtk", "carotid.vtk"};
   const VoxelStorage storages[] = {VoxelStorage::UInt8, VoxelStorage::UInt16};
   for (int f = 0; f < 2; ++f) {
-    vtkNew<vtkStructuredPointsReader> r;
-    r->SetFileName((dataDir() + "/volumes/" + files[f]).c_str());
-    r->Update();
-    vtkImageData* im = r->GetOutput();
-    vtkDataArray* s = im->GetPointData()->GetScalars();
-    ASSERT_NE(s, nullptr) << files[f];
-    int dims[3];
-    im->GetDimensions(dims);
-    std::vector<float> v(size_t(s->GetNumberOfTuples()));
-    for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i) v[size_t(i)] = float(s->GetTuple1(i));
-    double range[2];
-    s->GetRange(range);
-    const TransferTable tf = rampTable(range[0], range[1], 0.25, 0.4, 1 << 16);
+    mtest::FloatVolume fv;
+    ASSERT_TRUE(mtest::readFloatVolume(std::string("volumes/") + files[f], fv)) << files[f];
+    const int* dims = fv.dims;
+    const TransferTable tf = rampTable(fv.range[0], fv.range[1], 0.25, 0.4, 1 << 16);
     VolumeBuildOptions o;
     o.compactIntegralFloat = true;
     BlockSparseVolume vol;
-    vol.build(v.data(), dims, tf, o);
+    vol.build(fv.v.data(), fv.dims, tf, o);
     ASSERT_EQ(vol.storage(), storages[f]) << files[f];
-    VolumeGeometry g;
-    im->GetSpacing(g.spacing);
-    im->GetOrigin(g.origin);
+    const VolumeGeometry& g = fv.geo;
     const Vec3 lo(g.origin[0], g.origin[1], g.origin[2]);
     const Vec3 size((dims[0] - 1) * g.spacing[0], (dims[1] - 1) * g.spacing[1], (dims[2] - 1) * g.spacing[2]);
     const Vec3 centre = lo + size * 0.5;

@@ -1,10 +1,19 @@
-// Shared by the volume test suites (CPU and OpenCL): a ramp transfer table and a look-at camera.
+// Shared by the volume test suites (CPU and OpenCL): a ramp transfer table, a look-at camera and
+// a real volume read as floats.
 #pragma once
 
 #include <cmath>
+#include <string>
 #include <vector>
 
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkStructuredPointsReader.h>
+
 #include "mtree/volume.h"
+#include "test_util.h"
 
 namespace mtest {
 
@@ -30,6 +39,32 @@ inline mtree::VolumeCamera lookAt(mtree::Vec3 pos, mtree::Vec3 focal, int w = 1,
   c.width = w;
   c.height = h;
   return c;
+}
+
+/// A volume of the shared data folder with its scalars as floats (any input type), its
+/// dimensions, scalar range and geometry.
+struct FloatVolume {
+  std::vector<float> v;
+  int dims[3] = {0, 0, 0};
+  double range[2] = {0, 0};
+  mtree::VolumeGeometry geo;
+};
+
+/// Reads a legacy-VTK volume (e.g. "volumes/ironProt.vtk"); false if it has no point scalars.
+inline bool readFloatVolume(const std::string& rel, FloatVolume& out) {
+  vtkNew<vtkStructuredPointsReader> r;
+  r->SetFileName(dataPath(rel).c_str());
+  r->Update();
+  vtkImageData* im = r->GetOutput();
+  vtkDataArray* s = im->GetPointData()->GetScalars();
+  if (!s) return false;
+  im->GetDimensions(out.dims);
+  out.v.resize(size_t(s->GetNumberOfTuples()));
+  for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i) out.v[size_t(i)] = float(s->GetTuple1(i));
+  s->GetRange(out.range);
+  im->GetSpacing(out.geo.spacing);
+  im->GetOrigin(out.geo.origin);
+  return true;
 }
 
 }  // namespace mtest
