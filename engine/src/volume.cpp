@@ -797,6 +797,95 @@ MT_AVX2 inline void gatherPairs(const uint16_t* base, __m256i off, __m256 & firs
   second = _mm256_cvtepi32_ps(_mm256_srli_epi32(w, 16));
 }
 
+/// The per-ray constants of marchApronAvx2's chunks (broadcast once per ray).
+template <typename T>
+struct Avx2Ray {
+  __m256 P0x, P0y, P0z, Sx, Sy, Sz;
+  __m256i mx, my, mz;  // n - 2 per axis: cells that need no clamping are 0..n-2
+  __m256i nb0, nb1;    // level-0 bricks along x, y
+  __m256 tlo, tscale, offset;
+  __m256i tlast, zeroEntry;
+  const int* bricks;  // F.runBricks: MT_NULL (-1) where the walk takes over
+  const int* words;   // per level-0 brick 16 mask words: bit x + 8 y + 64 z
+  const T* data;
+};
+
+/// One chunk of 8 consecutive samples k..k+7 (kf = k as a float): how many leading lanes are
+/// taken (n: the cell needs no clamping, its brick is stored and visible, and the sample is one of
+/// the ray's, i.e. lane <= left = kEnd - k), which of those lanes' cells are visible (vis), and
+/// each lane's table entry offset (idx; the all-zero entry for an invisible cell). Only computed
+/// when vis != 0.
+struct Avx2Chunk {
+  int n;
+  unsigned vis;
+  __m256i idx;
+};
+
+template <typename T>
+MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R, float kf, int64_t left,
+                                                              Avx2Chunk& out) {
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY, VOL = BlockSparseVolume::BRICK_VOLUME;
+  static_assert(SY == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
+  const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
+  const __m256 kv = _mm256_add_ps(_mm256_set1_ps(kf), _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f));
+  const __m256 px = _mm256_add_ps(R.P0x, _mm256_mul_ps(kv, R.Sx));
+  const __m256 py = _mm256_add_ps(R.P0y, _mm256_mul_ps(kv, R.Sy));
+  const __m256 pz = _mm256_add_ps(R.P0z, _mm256_mul_ps(kv, R.Sz));
+  const __m256i ix = _mm256_cvttps_epi32(px), iy = _mm256_cvttps_epi32(py), iz = _mm256_cvttps_epi32(pz);
+  const __m256i clamp = _mm256_or_si256(
+      _mm256_or_si256(_mm256_or_si256(_mm256_cmpgt_epi32(ix, R.mx), _mm256_cmpgt_epi32(zeroi, ix)),
+                      _mm256_or_si256(_mm256_cmpgt_epi32(iy, R.my), _mm256_cmpgt_epi32(zeroi, iy))),
+      _mm256_or_si256(_mm256_cmpgt_epi32(iz, R.mz), _mm256_cmpgt_epi32(zeroi, iz)));
+  // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
+  const __m256i b = _mm256_andnot_si256(
+      clamp, _mm256_add_epi32(
+                 _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), R.nb1),
+                                                     _mm256_srli_epi32(iy, LOG2DIM)),
+                                    R.nb0),
+                 _mm256_srli_epi32(ix, LOG2DIM)));
+  const __m256i ptr = _mm256_i32gather_epi32(R.bricks, b, 4);
+  // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
+  // of the masks, issued without waiting for the brick pointers.
+  const __m256i lx = _mm256_and_si256(ix, seven), ly = _mm256_and_si256(iy, seven), lz = _mm256_and_si256(iz, seven);
+  const __m256i bit = _mm256_add_epi32(lx, _mm256_add_epi32(_mm256_slli_epi32(ly, 3), _mm256_slli_epi32(lz, 6)));
+  const __m256i word = _mm256_i32gather_epi32(R.words, _mm256_add_epi32(_mm256_slli_epi32(b, 4), _mm256_srli_epi32(bit, 5)), 4);
+  const __m256i vbit = _mm256_slli_epi32(_mm256_srlv_epi32(word, _mm256_and_si256(bit, _mm256_set1_epi32(31))), 31);
+  const __m256i stop = _mm256_or_si256(clamp, _mm256_cmpeq_epi32(ptr, _mm256_set1_epi32(-1)));
+  unsigned go = ~unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(stop))) & 0xFFu;
+  if (left < 7) go &= (2u << left) - 1u;  // lanes 0..left are samples of the ray
+  const int n = __builtin_ctz(~go);       // leading lanes taken (go < 256: at most 8)
+  out.n = n;
+  out.vis = n == 0 ? 0u : unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(vbit))) & ((2u << (n - 1)) - 1u);
+  if (!out.vis) return;
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 fx = _mm256_max_ps(_mm256_sub_ps(px, _mm256_cvtepi32_ps(ix)), zero);
+  const __m256 fy = _mm256_max_ps(_mm256_sub_ps(py, _mm256_cvtepi32_ps(iy)), zero);
+  const __m256 fz = _mm256_max_ps(_mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz)), zero);
+  // Voxel of corner 0: brick * 9^3 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz; 0 in the
+  // lanes without a brick.
+  const __m256i off = _mm256_andnot_si256(
+      stop, _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(VOL)),
+                             _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz)))));
+  __m256 c0, c1, c2, c3, c4, c5, c6, c7;  // corner dx + 2 dy + 4 dz
+  gatherPairs(R.data, off, c0, c1);
+  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SY)), c2, c3);
+  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SZ)), c4, c5);
+  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SZ + SY)), c6, c7);
+  const __m256 z0 = _mm256_add_ps(c0, _mm256_mul_ps(fz, _mm256_sub_ps(c4, c0)));
+  const __m256 z1 = _mm256_add_ps(c1, _mm256_mul_ps(fz, _mm256_sub_ps(c5, c1)));
+  const __m256 z2 = _mm256_add_ps(c2, _mm256_mul_ps(fz, _mm256_sub_ps(c6, c2)));
+  const __m256 z3 = _mm256_add_ps(c3, _mm256_mul_ps(fz, _mm256_sub_ps(c7, c3)));
+  const __m256 y0 = _mm256_add_ps(z0, _mm256_mul_ps(fy, _mm256_sub_ps(z2, z0)));
+  const __m256 y1 = _mm256_add_ps(z1, _mm256_mul_ps(fy, _mm256_sub_ps(z3, z1)));
+  const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), R.offset);
+  const __m256i raw = _mm256_cvttps_epi32(
+      _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, R.tlo), R.tscale), _mm256_set1_ps(0.5f)));
+  // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
+  // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
+  const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), R.tlast), 2);
+  out.idx = _mm256_blendv_epi8(R.zeroEntry, e4, _mm256_srai_epi32(vbit, 31));
+}
+
 /// marchApron<T, Skip, false> for 8 consecutive samples at a time. The same walk (apronEnter,
 /// apronClampedSample) finds the first sample in a stored visible brick; from there samples
 /// k..k+7 get their positions (lane j: P0 + (kf + j) S, the same float operations as the SSE2
@@ -810,6 +899,9 @@ MT_AVX2 inline void gatherPairs(const uint16_t* base, __m256i off, __m256 & firs
 /// lane with an all-zero entry (which changes nothing, exactly; it is not counted as a sample):
 /// the image, the early-termination point and the sample and skip counts are marchApron's
 /// exactly. Rays with more than 2^24 - 8 samples are not sent here (kf + j must be exact).
+/// Software-pipelined: the next chunk (its positions, gathers, interpolation and table indices,
+/// none of which depends on this one's) is prepared before this one is composited, so that its
+/// gathers' latency overlaps the serial compositing instead of following it.
 template <typename T, bool Skip>
 MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[3], const double d[3], double t0,
                             int64_t kEnd, float out[4], uint64_t& samplesOut, uint64_t& skipsOut) {
@@ -817,27 +909,19 @@ MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[
   AccT acc;
   const float Tmin = 1.f - F.threshold;
   const ApronRay ray(F, o, d, t0);
-  const __m256 P0x = _mm256_set1_ps(ray.P0s[0]), P0y = _mm256_set1_ps(ray.P0s[1]), P0z = _mm256_set1_ps(ray.P0s[2]);
-  const __m256 Sx = _mm256_set1_ps(ray.Ss[0]), Sy = _mm256_set1_ps(ray.Ss[1]), Sz = _mm256_set1_ps(ray.Ss[2]);
-  const __m256 laneF = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
-  const __m256 zero = _mm256_setzero_ps();
-  const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
-  // Cells that need no clamping: 0 <= i <= n - 2 per axis.
-  const __m256i mx = _mm256_set1_epi32(F.n[0] - 2), my = _mm256_set1_epi32(F.n[1] - 2), mz = _mm256_set1_epi32(F.n[2] - 2);
-  const __m256i nb0 = _mm256_set1_epi32(F.nb[0]), nb1 = _mm256_set1_epi32(F.nb[1]);
-  const __m256 tlo = _mm256_set1_ps(F.tlo), tscale = _mm256_set1_ps(F.tscale), half = _mm256_set1_ps(0.5f);
-  const __m256i tlast = _mm256_set1_epi32(F.tlast);
-  const __m256 offset = _mm256_set1_ps(F.offset);
+  Avx2Ray<T> R;
+  R.P0x = _mm256_set1_ps(ray.P0s[0]), R.P0y = _mm256_set1_ps(ray.P0s[1]), R.P0z = _mm256_set1_ps(ray.P0s[2]);
+  R.Sx = _mm256_set1_ps(ray.Ss[0]), R.Sy = _mm256_set1_ps(ray.Ss[1]), R.Sz = _mm256_set1_ps(ray.Ss[2]);
+  R.mx = _mm256_set1_epi32(F.n[0] - 2), R.my = _mm256_set1_epi32(F.n[1] - 2), R.mz = _mm256_set1_epi32(F.n[2] - 2);
+  R.nb0 = _mm256_set1_epi32(F.nb[0]), R.nb1 = _mm256_set1_epi32(F.nb[1]);
+  R.tlo = _mm256_set1_ps(F.tlo), R.tscale = _mm256_set1_ps(F.tscale), R.offset = _mm256_set1_ps(F.offset);
+  R.tlast = _mm256_set1_epi32(F.tlast);
+  R.zeroEntry = _mm256_set1_epi32(4 * (F.tlast + 1));
+  R.bricks = reinterpret_cast<const int*>(F.runBricks);
+  R.words = reinterpret_cast<const int*>(fetch.masks);
+  R.data = fetch.data;
   const float* const table = F.table;
   const int levels = F.vol->levelCount();
-  const int* const bricks = reinterpret_cast<const int*>(F.runBricks);  // MT_NULL (-1): not marched through
-  const int* const words = reinterpret_cast<const int*>(fetch.masks);   // per brick 16 words: bit x + 8 y + 64 z
-  const T* const data = fetch.data;
-  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY, VOL = BlockSparseVolume::BRICK_VOLUME;
-  static_assert(SY == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
-  const __m256i rowY = _mm256_set1_epi32(SY), rowZ = _mm256_set1_epi32(SZ), rowYZ = _mm256_set1_epi32(SZ + SY);
-  const __m256i brickVolume = _mm256_set1_epi32(VOL);
-  const __m256i zeroEntry = _mm256_set1_epi32(4 * (F.tlast + 1));
   alignas(32) int32_t idx[8];
   int64_t k = 0;
   while (k <= kEnd) {
@@ -846,81 +930,33 @@ MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[
     const int64_t kStart = k;
     bool done = false;
     float kf = float(k);
-    while (k <= kEnd) {
-      const __m256 kv = _mm256_add_ps(_mm256_set1_ps(kf), laneF);
-      const __m256 px = _mm256_add_ps(P0x, _mm256_mul_ps(kv, Sx));
-      const __m256 py = _mm256_add_ps(P0y, _mm256_mul_ps(kv, Sy));
-      const __m256 pz = _mm256_add_ps(P0z, _mm256_mul_ps(kv, Sz));
-      const __m256i ix = _mm256_cvttps_epi32(px), iy = _mm256_cvttps_epi32(py), iz = _mm256_cvttps_epi32(pz);
-      const __m256i clamp = _mm256_or_si256(
-          _mm256_or_si256(_mm256_or_si256(_mm256_cmpgt_epi32(ix, mx), _mm256_cmpgt_epi32(zeroi, ix)),
-                          _mm256_or_si256(_mm256_cmpgt_epi32(iy, my), _mm256_cmpgt_epi32(zeroi, iy))),
-          _mm256_or_si256(_mm256_cmpgt_epi32(iz, mz), _mm256_cmpgt_epi32(zeroi, iz)));
-      // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
-      const __m256i b = _mm256_andnot_si256(
-          clamp, _mm256_add_epi32(
-                     _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), nb1),
-                                                         _mm256_srli_epi32(iy, LOG2DIM)),
-                                        nb0),
-                     _mm256_srli_epi32(ix, LOG2DIM)));
-      const __m256i ptr = _mm256_i32gather_epi32(bricks, b, 4);
-      // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
-      // of the masks, issued without waiting for the brick pointers.
-      const __m256i lx = _mm256_and_si256(ix, seven), ly = _mm256_and_si256(iy, seven), lz = _mm256_and_si256(iz, seven);
-      const __m256i bit = _mm256_add_epi32(lx, _mm256_add_epi32(_mm256_slli_epi32(ly, 3), _mm256_slli_epi32(lz, 6)));
-      const __m256i word = _mm256_i32gather_epi32(words, _mm256_add_epi32(_mm256_slli_epi32(b, 4), _mm256_srli_epi32(bit, 5)), 4);
-      const __m256i vbit = _mm256_slli_epi32(_mm256_srlv_epi32(word, _mm256_and_si256(bit, _mm256_set1_epi32(31))), 31);
-      const __m256i stop = _mm256_or_si256(clamp, _mm256_cmpeq_epi32(ptr, _mm256_set1_epi32(-1)));
-      unsigned go = ~unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(stop))) & 0xFFu;
-      const int64_t left = kEnd - k;  // lanes 0..left are samples of the ray
-      if (left < 7) go &= (2u << left) - 1u;
-      const int n = __builtin_ctz(~go);  // leading lanes taken (go < 256: at most 8)
-      if (n == 0) break;                 // sample k needs clamping or is in an empty brick: the walk
-      const unsigned vis = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(vbit))) & ((2u << (n - 1)) - 1u);
-      if (vis) {
-        const __m256 fx = _mm256_max_ps(_mm256_sub_ps(px, _mm256_cvtepi32_ps(ix)), zero);
-        const __m256 fy = _mm256_max_ps(_mm256_sub_ps(py, _mm256_cvtepi32_ps(iy)), zero);
-        const __m256 fz = _mm256_max_ps(_mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz)), zero);
-        // Voxel of corner 0: brick * 9^3 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz; 0 in the
-        // lanes without a brick.
-        const __m256i off = _mm256_andnot_si256(
-            stop, _mm256_add_epi32(_mm256_mullo_epi32(ptr, brickVolume),
-                                   _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz)))));
-        __m256 c0, c1, c2, c3, c4, c5, c6, c7;  // corner dx + 2 dy + 4 dz
-        gatherPairs(data, off, c0, c1);
-        gatherPairs(data, _mm256_add_epi32(off, rowY), c2, c3);
-        gatherPairs(data, _mm256_add_epi32(off, rowZ), c4, c5);
-        gatherPairs(data, _mm256_add_epi32(off, rowYZ), c6, c7);
-        const __m256 z0 = _mm256_add_ps(c0, _mm256_mul_ps(fz, _mm256_sub_ps(c4, c0)));
-        const __m256 z1 = _mm256_add_ps(c1, _mm256_mul_ps(fz, _mm256_sub_ps(c5, c1)));
-        const __m256 z2 = _mm256_add_ps(c2, _mm256_mul_ps(fz, _mm256_sub_ps(c6, c2)));
-        const __m256 z3 = _mm256_add_ps(c3, _mm256_mul_ps(fz, _mm256_sub_ps(c7, c3)));
-        const __m256 y0 = _mm256_add_ps(z0, _mm256_mul_ps(fy, _mm256_sub_ps(z2, z0)));
-        const __m256 y1 = _mm256_add_ps(z1, _mm256_mul_ps(fy, _mm256_sub_ps(z3, z1)));
-        const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), offset);
-        const __m256i raw = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, tlo), tscale), half));
-        // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
-        // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
-        const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), tlast), 2);
-        _mm256_store_si256(reinterpret_cast<__m256i*>(idx),
-                           _mm256_blendv_epi8(zeroEntry, e4, _mm256_srai_epi32(vbit, 31)));
+    Avx2Chunk cur{};
+    avx2Chunk(R, kf, kEnd - k, cur);
+    while (cur.n) {  // n == 0: sample k needs clamping or is in an empty brick: the walk
+      const bool more = cur.n == 8 && kEnd - k >= 8;
+      Avx2Chunk next{};  // (idx unset when vis is 0)
+      if (more) avx2Chunk(R, kf + 8.f, kEnd - k - 8, next);
+      if (cur.vis) {
+        _mm256_store_si256(reinterpret_cast<__m256i*>(idx), cur.idx);
+        const int n = cur.n;
         for (int j = 0; j < n; ++j) {
           acc.add(table + idx[j]);
           if (acc.T <= Tmin) {
-            samples += __builtin_popcount(vis & ((2u << j) - 1u));
+            samples += __builtin_popcount(cur.vis & ((2u << j) - 1u));
             done = true;
             break;
           }
         }
         if (done) break;
-        samples += __builtin_popcount(vis);
+        samples += __builtin_popcount(cur.vis);
       }
-      if (n < 8) {
-        k += n;
+      if (!more) {
+        k += cur.n;
         break;
       }
       k += 8;  // not k += n: the next chunk's positions need not wait for this one's gathers
       kf += 8.f;
+      cur = next;
     }
     if (done) break;
     if (k == kStart) {
