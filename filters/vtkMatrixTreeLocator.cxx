@@ -183,6 +183,155 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   return -1;
 }
 
+// The ray queries' first test of a leaf's candidates (tol = 0): the segment o + t d, t in
+// [0, bound], against each candidate's quantized box in this leaf (LeafBoxes, read in order),
+// in double precision and grown by a margin (below). The quantized box contains the part of
+// the cell's bounds (padded by 1e-3 of their extent) inside the leaf, so a VTK hit of the
+// cell at a point of this leaf lies in it. A candidate that fails is only not tested in this
+// leaf (it is not put in the mailbox): a hit elsewhere lies in another leaf that references
+// the cell (a cell is referenced in every leaf it overlaps), which the walk visits before it
+// can stop past that t. The margin (1e-7 of the leaf plus round-off in the coordinates'
+// magnitude) keeps a hit that round-off puts on the other side of a leaf face in both leaves.
+// With tol > 0 a hit may lie up to tol outside the cell, in a leaf that does not reference it:
+// those queries test every candidate as before.
+class LeafSegmentFilter
+{
+public:
+  struct Candidate
+  {
+    double t; // where the segment enters the candidate's (grown) box, >= 0
+    uint32_t k; // index into the leaf's candidates
+  };
+
+  LeafSegmentFilter(const vtkMatrixTreeLocatorInternals& in, mtree::Vec3 o, mtree::Vec3 d, double tol)
+    : In(in), O(o), D(d)
+  {
+    const auto& prims = in.Tree.primitiveIndices();
+    this->Enabled = tol == 0.0 && !in.Tree.empty() && mtree::isFinite(o) && mtree::isFinite(d) &&
+      !(d.x == 0 && d.y == 0 && d.z == 0) && in.LeafBoxes.size() == 6 * prims.size();
+    this->Prims = prims.data();
+    this->NumPrims = prims.size();
+    this->H = in.Tree.height();
+    const mtree::Vec3 e = o + d;
+    this->Mag = std::max({ std::fabs(o.x), std::fabs(o.y), std::fabs(o.z), std::fabs(e.x), std::fabs(e.y),
+      std::fabs(e.z) });
+  }
+
+  // The candidates of the leaf whose references start at `ids` that the segment may hit in
+  // this leaf at t <= bound, in `out` sorted by entry t; -1 if the leaf was not identified
+  // (then every candidate must be tested).
+  int candidates(const uint32_t* ids, uint32_t count, double tEnter, double tExit, double bound,
+    Candidate* out) const
+  {
+    if (!this->Enabled || count == 0 || ids < this->Prims || ids + count > this->Prims + this->NumPrims)
+    {
+      return -1;
+    }
+    const mtree::MatrixTree& tree = this->In.Tree;
+    const mtree::Box& root = tree.rootBox();
+    const mtree::Vec3 cs = tree.cellSize(this->H);
+    const double tm = 0.5 * (tEnter + tExit);
+    const mtree::Vec3 p = this->O + this->D * tm;
+    int L[3];
+    for (int a = 0; a < 3; ++a)
+    {
+      L[a] = mtree::cellIndex((p[a] - root.lo[a]) / cs[a], 0, tree.dim(this->H, a) - 1);
+    }
+    MtLeafRange r;
+    const uint32_t begin = static_cast<uint32_t>(ids - this->Prims);
+    if (!tree.leafAt(L, r) || r.begin != begin || r.end - r.begin != count)
+    {
+      return -1;
+    }
+    const mtree::Box lb = tree.nodeBox(this->H, L);
+    constexpr double eps = std::numeric_limits<double>::epsilon();
+    const double mag = std::max({ this->Mag, std::fabs(lb.lo.x), std::fabs(lb.lo.y), std::fabs(lb.lo.z),
+      std::fabs(lb.hi.x), std::fabs(lb.hi.y), std::fabs(lb.hi.z) });
+    // Per axis: t of quantized coordinate q is A + q B (moving axes), within +-M; a static
+    // axis needs its coordinate's q within [qlo, qhi] grown by the margin.
+    double A[3], B[3], M[3], SLo[3], SHi[3];
+    bool moving[3];
+    bool anyStatic = false;
+    for (int a = 0; a < 3; ++a)
+    {
+      const double w = lb.hi[a] - lb.lo[a];
+      if (!(w > 0) || !std::isfinite(w))
+      {
+        return -1;
+      }
+      const double unit = w / 255.0;
+      const double margin = 1e-7 * w + 16 * eps * mag; // world units
+      moving[a] = this->D[a] != 0;
+      if (moving[a])
+      {
+        const double inv = 1.0 / this->D[a];
+        A[a] = (lb.lo[a] - this->O[a]) * inv;
+        B[a] = unit * inv;
+        M[a] = margin * std::fabs(inv) + 8 * eps * (std::fabs(A[a]) + 255 * std::fabs(B[a]));
+        if (!std::isfinite(A[a]) || !std::isfinite(B[a]) || !std::isfinite(M[a]))
+        {
+          return -1;
+        }
+      }
+      else
+      {
+        anyStatic = true;
+        const double q = (this->O[a] - lb.lo[a]) / unit, mq = margin / unit + 1e-9;
+        SLo[a] = q - mq; // passes when qhi >= SLo and qlo <= SHi
+        SHi[a] = q + mq;
+      }
+    }
+    const uint8_t* boxes = this->In.LeafBoxes.data() + 6 * static_cast<size_t>(begin);
+    int n = 0;
+    for (uint32_t k = 0; k < count; ++k)
+    {
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      double te = 0.0, tx = bound;
+      for (int a = 0; a < 3; ++a)
+      {
+        if (moving[a])
+        {
+          const double t1 = A[a] + qb[2 * a] * B[a], t2 = A[a] + qb[2 * a + 1] * B[a];
+          te = std::max(te, std::min(t1, t2) - M[a]);
+          tx = std::min(tx, std::max(t1, t2) + M[a]);
+        }
+        else if (anyStatic && (qb[2 * a + 1] < SLo[a] || qb[2 * a] > SHi[a]))
+        {
+          tx = -1.0;
+        }
+      }
+      if (te <= tx)
+      {
+        out[n].t = te;
+        out[n].k = k;
+        ++n;
+      }
+    }
+    // Insertion sort by entry t (a handful of survivors).
+    for (int i = 1; i < n; ++i)
+    {
+      const Candidate c = out[i];
+      int j = i - 1;
+      while (j >= 0 && out[j].t > c.t)
+      {
+        out[j + 1] = out[j];
+        --j;
+      }
+      out[j + 1] = c;
+    }
+    return n;
+  }
+
+private:
+  const vtkMatrixTreeLocatorInternals& In;
+  mtree::Vec3 O, D;
+  const uint32_t* Prims = nullptr;
+  size_t NumPrims = 0;
+  int H = 0;
+  double Mag = 0;
+  bool Enabled = false;
+};
+
 }
 
 //------------------------------------------------------------------------------
@@ -484,6 +633,11 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   double best = VTK_DOUBLE_MAX, tt, xx[3], pc[3];
   int sid;
   vtkIdType bestId = -1;
+  // With tol = 0 each leaf's candidates are first tested against their quantized boxes in this
+  // leaf (LeafBoxes: sequential bytes, where the cells' own bounds are a random read each); see
+  // LeafSegmentFilter. Those that pass are taken in the order the segment enters their boxes,
+  // and the leaf stops at the first whose entry lies beyond the best hit so far.
+  const LeafSegmentFilter leafFilter(in, o, d, tol);
   // Tetrahedra whose hit is certain from the engine's copy (tetraFirstHitIfCertain, tol 0) are
   // not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
   // the end, for the exact t, x and pcoords. Should VTK not confirm it (it never did in the
@@ -498,53 +652,98 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
     vtkIdType mailbox[64];
     std::fill(mailbox, mailbox + 64, -1);
+    LeafSegmentFilter::Candidate stackBuf[256];
+    std::vector<LeafSegmentFilter::Candidate> heapBuf;
+    // boxTest: whether the cell's own bounds are tested first (not needed after the leaf's
+    // quantized boxes, which reject as much: a random read saved per candidate).
+    auto test = [&](vtkIdType id, bool boxTest) {
+      vtkIdType& slot = mailbox[id & 63];
+      if (slot == id)
+      {
+        return;
+      }
+      slot = id;
+      const double bound = std::min({ best, deferredT, 1.0 });
+      if (boxTest)
+      {
+        // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
+        const float* cb = in.Cells.cellBox(id);
+        mtree::Box box;
+        box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
+        box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
+        double t0 = 0.0, t1 = bound;
+        if (!mtree::rayBox(o, d, box, t0, t1))
+        {
+          return;
+        }
+      }
+      // Then the cell's points: most cells whose box the segment crosses are proved missed
+      // (or hit only beyond the best t so far) without VTK (segment_filter.h).
+      if (!mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), bound))
+      {
+        return;
+      }
+      double tc;
+      if (deferTets && mtree::tetraFirstHitIfCertain(frame, in.Cells, static_cast<size_t>(id), tc))
+      {
+        if (tc < deferredT)
+        {
+          deferredT = tc;
+          deferredId = id;
+        }
+        return;
+      }
+      FillCell(this->DataSet, in, id, cell);
+      if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
+      {
+        best = tt;
+        bestId = id;
+        std::copy(xx, xx + 3, x);
+        std::copy(pc, pc + 3, pcoords);
+        subId = sid;
+      }
+    };
     in.Tree.traverseRay(
       o, d, 0.0, 1.0,
-      [&](const uint32_t* ids, uint32_t count, double, double tExit) {
-        for (uint32_t k = 0; k < count; ++k)
+      [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit) {
+        LeafSegmentFilter::Candidate* cand = stackBuf;
+        if (count > 256)
         {
-          const vtkIdType id = ids[k];
-          vtkIdType& slot = mailbox[id & 63];
-          if (slot == id)
+          heapBuf.resize(count);
+          cand = heapBuf.data();
+        }
+        const int nc =
+          leafFilter.candidates(ids, count, tEnter, tExit, std::min({ best, deferredT, 1.0 }), cand);
+        if (nc < 0)
+        {
+          for (uint32_t k = 0; k < count; ++k)
           {
-            continue;
+            test(ids[k], true);
           }
-          slot = id;
-          const double bound = std::min({ best, deferredT, 1.0 });
-          // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
-          const float* cb = in.Cells.cellBox(id);
-          mtree::Box box;
-          box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
-          box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
-          double t0 = 0.0, t1 = bound;
-          if (!mtree::rayBox(o, d, box, t0, t1))
+        }
+        else
+        {
+          // The survivors are known ahead: their point ids, then their points, are fetched
+          // a few candidates early (random reads that otherwise stall each test in turn).
+          for (int j = 0; j < std::min(nc, 4); ++j)
           {
-            continue;
+            in.Cells.prefetchPointIds(ids[cand[j].k]);
           }
-          // Then the cell's points: most cells whose box the segment crosses are proved missed
-          // (or hit only beyond the best t so far) without VTK (segment_filter.h).
-          if (!mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), bound))
+          for (int j = 0; j < nc; ++j)
           {
-            continue;
-          }
-          double tc;
-          if (deferTets && mtree::tetraFirstHitIfCertain(frame, in.Cells, static_cast<size_t>(id), tc))
-          {
-            if (tc < deferredT)
+            if (cand[j].t > std::min({ best, deferredT, 1.0 }))
             {
-              deferredT = tc;
-              deferredId = id;
+              break; // sorted: the rest enter their boxes in this leaf later still
             }
-            continue;
-          }
-          FillCell(this->DataSet, in, id, cell);
-          if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
-          {
-            best = tt;
-            bestId = id;
-            std::copy(xx, xx + 3, x);
-            std::copy(pc, pc + 3, pcoords);
-            subId = sid;
+            if (j + 4 < nc)
+            {
+              in.Cells.prefetchPointIds(ids[cand[j + 4].k]);
+            }
+            if (j + 2 < nc)
+            {
+              in.Cells.prefetchPoints(ids[cand[j + 2].k]);
+            }
+            test(ids[cand[j].k], false);
           }
         }
         return (bestId >= 0 || deferredId >= 0) && std::min(best, deferredT) <= tExit;
