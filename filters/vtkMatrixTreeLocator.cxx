@@ -638,8 +638,8 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   // LeafSegmentFilter. Those that pass are taken in the order the segment enters their boxes,
   // and the leaf stops at the first whose entry lies beyond the best hit so far.
   const LeafSegmentFilter leafFilter(in, o, d, tol);
-  // Tetrahedra whose hit is certain from the engine's copy (tetraFirstHitIfCertain, tol 0) are
-  // not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
+  // Cells whose hit is certain from the engine's copy (firstHitIfCertain, tol 0: tetrahedra, and
+  // hexahedra, wedges and pyramids with planar faces) are not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
   // the end, for the exact t, x and pcoords. Should VTK not confirm it (it never did in the
   // tests), the query is run again with every cell going to VTK.
   for (int pass = 0; pass < 2; ++pass)
@@ -684,7 +684,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         return;
       }
       double tc;
-      if (deferTets && mtree::tetraFirstHitIfCertain(frame, in.Cells, static_cast<size_t>(id), tc))
+      if (deferTets && mtree::firstHitIfCertain(frame, in.Cells, static_cast<size_t>(id), tc))
       {
         if (tc < deferredT)
         {

@@ -225,4 +225,126 @@ inline bool tetraFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, 
   return false;  // no crossing in [0, 1]: a miss, left to the rejection test and VTK
 }
 
+/// The same for a hexahedron, wedge or pyramid whose faces are planar (to round-off) and which is
+/// convex: vtkHexahedron, vtkWedge and vtkPyramid report the smallest t in [0, 1] at which the
+/// segment crosses one of their faces, each face a triangle or a quad that vtkQuad splits into
+/// two triangles along one of its diagonals. With planar faces the line meets the convex cell's
+/// boundary only where it enters (te) and leaves (tx); the hit is te if 0 < te <= 1, else tx if
+/// te <= 0 < tx <= 1. It is certain when both crossings lie inside their faces by a margin (every
+/// other face plane at least m L away, L the cell's bounding-box diagonal), a quad face's
+/// crossing is m L away from both its diagonals (so whichever split VTK picks, one triangle
+/// holds it well inside and the other well outside), neither crossing is near an end of the
+/// segment, and the cell is not flat. m is tetraFirstHitIfCertain's margin. A warped face, a
+/// non-convex or degenerate cell, and a segment that misses: false (VTK decides).
+inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+  if (!f.valid || f.tol != 0) return false;
+  const uint8_t type = cells.type(c);
+  if (type != kHexahedron && type != kWedge && type != kPyramid) return false;
+  const CellTopology* topo = cellTopology(type);
+  if (!topo || cells.numCellPoints(c) != topo->numPoints) return false;
+  const int n = topo->numPoints;
+  Vec3 p[CellSet::kMaxLocalPoints];
+  Vec3 lo(std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+          std::numeric_limits<double>::infinity());
+  Vec3 hi = lo * -1.0;
+  double vmag = 0;
+  for (int k = 0; k < n; ++k) {
+    p[k] = cells.cellPoint(c, k);
+    lo = vmin(lo, p[k]);
+    hi = vmax(hi, p[k]);
+    vmag = std::max({vmag, std::fabs(p[k].x), std::fabs(p[k].y), std::fabs(p[k].z)});
+  }
+  const double L = norm(hi - lo);
+  if (!(L > 0) || !std::isfinite(L)) return false;
+  constexpr double eps = std::numeric_limits<double>::epsilon();
+  const double mag = std::max(f.mag, vmag);
+  // As in tetraFirstHitIfCertain: VTK's t must not be able to reorder hits by more than 1e-9.
+  if (1024 * eps * mag * f.invLen > 1e-10) return false;
+  // Round-off of a point's distance to a face plane, in units of L.
+  const double planeEps = 64 * eps * mag / L;
+  const Vec3 r1 = f.p1 - lo;
+  const double far = (norm(r1) + norm(r1 + f.d)) / L;
+  const double m = 1e-6 + 1e-9 * far + 1024 * eps * mag / L;
+  // Each face: unit outward normal nu and a point o on it; l1 = -dot(nu, p1 - o) / L is how far
+  // inside the plane p1 lies (units of L), dl its change along d.
+  double l1[6], dl[6];
+  Vec3 nu[6], fo[6];
+  const int nf = topo->numFaces;
+  for (int i = 0; i < nf; ++i) {
+    const int* v = topo->face[i];
+    const bool quad = topo->faceSize[i] == 4;
+    Vec3 nrm = quad ? cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[1]]) : cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
+    const double nn = norm(nrm);
+    if (!(nn > 1e-6 * L * L)) return false;  // a degenerate face
+    nrm = nrm * (1.0 / nn);
+    fo[i] = p[v[0]];
+    // Planar (the other points on the plane through v[0] to round-off) and convex (every
+    // point of the cell on the inner side); the topology's faces are wound outward, but a
+    // tangled cell may not be: the side is taken from the cell's points, all on one side.
+    double inner = 0;
+    for (int k = 0; k < n; ++k) {
+      const double s = dot(nrm, p[k] - fo[i]) / L;
+      bool onFace = false;
+      for (int j = 0; j < topo->faceSize[i]; ++j) onFace = onFace || v[j] == k;
+      if (onFace) {
+        if (!(std::fabs(s) <= planeEps)) return false;  // warped face
+        continue;
+      }
+      if (std::fabs(s) <= 1e-3) return false;  // a point (nearly) on another face's plane: flat or odd
+      if (inner == 0) inner = s;
+      else if ((s > 0) != (inner > 0)) return false;  // points on both sides: not convex
+    }
+    if (inner > 0) nrm = nrm * -1.0;  // outward: the cell's points lie at negative distance
+    nu[i] = nrm;
+    l1[i] = -dot(nrm, f.p1 - fo[i]) / L;
+    dl[i] = -dot(nrm, f.d) / L;
+  }
+  double te = -std::numeric_limits<double>::infinity(), tx = std::numeric_limits<double>::infinity();
+  int ie = -1, ix = -1;
+  for (int i = 0; i < nf; ++i) {
+    if (dl[i] == 0) {
+      if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
+      continue;
+    }
+    const double ti = -l1[i] / dl[i];
+    if (dl[i] > 0) {
+      if (ti > te) te = ti, ie = i;
+    } else if (ti < tx) {
+      tx = ti, ix = i;
+    }
+  }
+  if (ie < 0 || ix < 0 || !(te < tx)) return false;
+  for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
+    for (int j = 0; j < nf; ++j)
+      if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
+    if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
+    if (topo->faceSize[ic] == 4) {
+      // Away from both diagonals of the quad (in its plane: distance to the diagonal's line).
+      const int* v = topo->face[ic];
+      const Vec3 x = f.p1 + f.d * tc;
+      for (int k = 0; k < 2; ++k) {
+        const Vec3 a = p[v[k]], e = p[v[k + 2]] - a;
+        const double ee = norm(e);
+        if (!(norm(cross(e, x - a)) >= m * L * ee)) return false;
+      }
+    }
+  }
+  if (te > 0 && te <= 1) {
+    t = te;
+    return true;
+  }
+  if (te <= 0 && tx > 0 && tx <= 1) {
+    t = tx;
+    return true;
+  }
+  return false;
+}
+
+/// tetraFirstHitIfCertain or convexFirstHitIfCertain, by the cell's type.
+inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+  const uint8_t type = cells.type(c);
+  if (type == kTetra) return tetraFirstHitIfCertain(f, cells, c, t);
+  return convexFirstHitIfCertain(f, cells, c, t);
+}
+
 }  // namespace mtree
