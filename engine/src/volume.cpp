@@ -273,6 +273,7 @@ struct Frame {
   double dt;         // world units per step
   float threshold;
   int lanes;         // 8: the unshaded UInt8/UInt16 float rays take the AVX2 marcher; 1: the SSE2 one
+  bool setup4;       // perspective rays are set up 4 at a time with AVX2 (setupRays4: the same rays)
   const uint32_t* runBricks;  // AVX2 marcher: per level-0 brick its stored brick where the walk may
                               // march through it, MT_NULL where it stops (absent; skipping: invisible)
   double spacing[3];
@@ -1049,6 +1050,101 @@ PixelRect hitRect(const VolumeGeometry& geo, const VolumeCamera& cam, const int 
   return r;
 }
 
+/// A perspective ray in index space as marchImage sets it up: origin (the eye, the same for all),
+/// direction rd, entry t0 and last sample kEnd; d the unit world direction (the headlight).
+struct PixelRay {
+  double rd[3], t0, d[3];
+  int64_t kEnd;
+  bool hit;  // false: the ray misses the box (its pixel stays 0)
+};
+
+/// The per-frame numbers of a perspective ray's set-up (marchImage's expressions).
+struct RaySetupFrame {
+  double fwd[3], spacing[3], roEye[3], hiIdx[3], dt;
+  const double* rightX[3];  // per column: right * (nx th aspect), one array per axis (padded by 3)
+  double upY[3];            // the row's up * (ny th)
+};
+
+/// The scalar set-up of pixel column x of the row in S: marchImage's per-pixel arithmetic.
+inline PixelRay setupRay(const RaySetupFrame& S, int x) {
+  PixelRay r;
+  const Vec3 d = normalized(Vec3(S.fwd[0], S.fwd[1], S.fwd[2]) + Vec3(S.rightX[0][x], S.rightX[1][x], S.rightX[2][x]) +
+                            Vec3(S.upY[0], S.upY[1], S.upY[2]));
+  double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+  bool miss = false;
+  for (int a = 0; a < 3; ++a) {
+    r.d[a] = d[a];
+    r.rd[a] = d[a] / S.spacing[a];
+    if (r.rd[a] == 0) {
+      if (S.roEye[a] < 0 || S.roEye[a] > S.hiIdx[a]) miss = true;
+      continue;
+    }
+    double ta = (0 - S.roEye[a]) / r.rd[a], tb = (S.hiIdx[a] - S.roEye[a]) / r.rd[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  r.t0 = t0;
+  r.hit = !miss && t0 <= t1;
+  r.kEnd = 0;
+  if (r.hit) {
+    const double kx = std::floor((t1 - t0) / S.dt);
+    r.kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
+  }
+  return r;
+}
+
+#if MT_VOLUME_AVX2
+/// setupRay for columns x..x+3 at once, in AVX2 doubles: the same operations in the same order
+/// (additions, products, the square root and the divisions are correctly rounded in every lane;
+/// nothing is fused), so every lane is setupRay's ray bit for bit. max/min keep std::max/min's
+/// operand choice on ties (vmaxpd/vminpd return the second operand then), and an axis the ray
+/// is parallel to sets no bound, as there.
+MT_AVX2 void setupRays4(const RaySetupFrame& S, int x, PixelRay r[4]) {
+  __m256d d[3];
+  for (int a = 0; a < 3; ++a)
+    d[a] = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(S.fwd[a]), _mm256_loadu_pd(S.rightX[a] + x)),
+                         _mm256_set1_pd(S.upY[a]));
+  const __m256d n = _mm256_sqrt_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(d[0], d[0]), _mm256_mul_pd(d[1], d[1])),
+                                                 _mm256_mul_pd(d[2], d[2])));
+  const __m256d inv = _mm256_div_pd(_mm256_set1_pd(1.0), n);
+  const __m256d pos = _mm256_cmp_pd(n, _mm256_setzero_pd(), _CMP_GT_OQ);
+  __m256d t0 = _mm256_setzero_pd(), t1 = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  __m256d miss = _mm256_setzero_pd();
+  const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  const __m256d ninf = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+  alignas(32) double dd[3][4], rdd[3][4];
+  for (int a = 0; a < 3; ++a) {
+    d[a] = _mm256_blendv_pd(d[a], _mm256_mul_pd(d[a], inv), pos);
+    const __m256d rd = _mm256_div_pd(d[a], _mm256_set1_pd(S.spacing[a]));
+    _mm256_store_pd(dd[a], d[a]);
+    _mm256_store_pd(rdd[a], rd);
+    const __m256d zero = _mm256_cmp_pd(rd, _mm256_setzero_pd(), _CMP_EQ_OQ);
+    if (S.roEye[a] < 0 || S.roEye[a] > S.hiIdx[a]) miss = _mm256_or_pd(miss, zero);
+    const __m256d ta = _mm256_div_pd(_mm256_set1_pd(0 - S.roEye[a]), rd);
+    const __m256d tb = _mm256_div_pd(_mm256_set1_pd(S.hiIdx[a] - S.roEye[a]), rd);
+    const __m256d swap = _mm256_cmp_pd(ta, tb, _CMP_GT_OQ);
+    const __m256d lo = _mm256_blendv_pd(_mm256_blendv_pd(ta, tb, swap), ninf, zero);
+    const __m256d hi = _mm256_blendv_pd(_mm256_blendv_pd(tb, ta, swap), inf, zero);
+    t0 = _mm256_max_pd(lo, t0);  // std::max(t0, lo): lo only when t0 < lo
+    t1 = _mm256_min_pd(hi, t1);  // std::min(t1, hi): hi only when hi < t1
+  }
+  const int hit = _mm256_movemask_pd(_mm256_andnot_pd(miss, _mm256_cmp_pd(t0, t1, _CMP_LE_OQ)));
+  alignas(32) double t0s[4], kx[4];
+  _mm256_store_pd(t0s, t0);
+  _mm256_store_pd(kx, _mm256_floor_pd(_mm256_div_pd(_mm256_sub_pd(t1, t0), _mm256_set1_pd(S.dt))));
+  for (int l = 0; l < 4; ++l) {
+    for (int a = 0; a < 3; ++a) {
+      r[l].d[a] = dd[a][l];
+      r[l].rd[a] = rdd[a][l];
+    }
+    r[l].t0 = t0s[l];
+    r[l].hit = (hit >> l) & 1;
+    r[l].kEnd = !r[l].hit ? 0 : kx[l] > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx[l]);
+  }
+}
+#endif
+
 template <typename R, typename Fetch, bool Skip, bool Shade>
 void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
                 double aspect, int threads, float* rgba, uint64_t& samples, uint64_t& skips,
@@ -1064,9 +1160,12 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   // nx, ny; a perspective ray's direction terms right * (nx th aspect), up * (ny th); its origin.
   std::vector<double> nxs(static_cast<size_t>(w)), nys(static_cast<size_t>(h));
   std::vector<Vec3> rightX(static_cast<size_t>(w)), upY(static_cast<size_t>(h));
+  std::vector<double> rightXa[3];  // the same per axis, padded by 3 columns for setupRays4
+  for (int a = 0; a < 3; ++a) rightXa[a].assign(size_t(w) + 3, 0.0);
   for (int x = 0; x < w; ++x) {
     nxs[size_t(x)] = 2.0 * (x + 0.5) / w - 1.0;
     rightX[size_t(x)] = right * (nxs[size_t(x)] * th * aspect);
+    for (int a = 0; a < 3; ++a) rightXa[a][size_t(x)] = rightX[size_t(x)][a];
   }
   for (int y = 0; y < h; ++y) {
     nys[size_t(y)] = 2.0 * (y + 0.5) / h - 1.0;
@@ -1074,6 +1173,20 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   }
   double roEye[3];
   for (int a = 0; a < 3; ++a) roEye[a] = (pos[a] - geo.origin[a]) / geo.spacing[a];
+  RaySetupFrame S0;
+  for (int a = 0; a < 3; ++a) {
+    S0.fwd[a] = fwd[a];
+    S0.spacing[a] = geo.spacing[a];
+    S0.roEye[a] = roEye[a];
+    S0.hiIdx[a] = hiIdx[a];
+    S0.rightX[a] = rightXa[a].data();
+  }
+  S0.dt = F.dt;
+#if MT_VOLUME_AVX2
+  const bool setup4 = F.setup4 && !cam.parallel;
+#else
+  const bool setup4 = false;
+#endif
   constexpr int TILE = 8;
   const int tx = (w + TILE - 1) / TILE, ty = (h + TILE - 1) / TILE;
   uint64_t sTotal = 0, kTotal = 0, rTotal = 0;
@@ -1081,48 +1194,61 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   for (int tile = 0; tile < tx * ty; ++tile) {
     const int x0 = (tile % tx) * TILE, y0 = (tile / tx) * TILE;
     const int x1 = std::min(w, x0 + TILE), y1 = std::min(h, y0 + TILE);
-    for (int y = y0; y < y1; ++y)
-      for (int x = x0; x < x1; ++x) {
-        float* out = rgba + (size_t(y) * w + x) * 4;
-        if (x < hit.x0 || x > hit.x1 || y < hit.y0 || y > hit.y1) {  // misses the box: left 0
+    RaySetupFrame S = S0;
+    for (int y = y0; y < y1; ++y) {
+      for (int a = 0; a < 3; ++a) S.upY[a] = upY[size_t(y)][a];
+      const bool rowHit = y >= hit.y0 && y <= hit.y1;
+      for (int xg = x0; xg < x1; xg += 4) {
+        PixelRay group[4];
+        const bool grouped = setup4 && rowHit && xg + 3 >= hit.x0 && xg <= hit.x1;
+#if MT_VOLUME_AVX2
+        if (grouped) setupRays4(S, xg, group);
+#endif
+        for (int x = xg; x < std::min(x1, xg + 4); ++x) {
+          float* out = rgba + (size_t(y) * w + x) * 4;
           ++rTotal;
-          out[0] = out[1] = out[2] = out[3] = 0.f;
-          continue;
-        }
-        const double nx = nxs[size_t(x)], ny = nys[size_t(y)];
-        Vec3 o, d;
-        if (cam.parallel) {
-          o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
-          d = fwd;
-        } else {
-          o = pos;
-          d = normalized(fwd + rightX[size_t(x)] + upY[size_t(y)]);
-        }
-        double ro[3], rd[3];
-        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
-        bool miss = false;
-        for (int a = 0; a < 3; ++a) {
-          ro[a] = cam.parallel ? (o[a] - geo.origin[a]) / geo.spacing[a] : roEye[a];
-          rd[a] = d[a] / geo.spacing[a];
-          if (rd[a] == 0) {
-            if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
+          if (!rowHit || x < hit.x0 || x > hit.x1) {  // misses the box: left 0
+            out[0] = out[1] = out[2] = out[3] = 0.f;
             continue;
           }
-          double ta = (0 - ro[a]) / rd[a], tb = (hiIdx[a] - ro[a]) / rd[a];
-          if (ta > tb) std::swap(ta, tb);
-          t0 = std::max(t0, ta);
-          t1 = std::min(t1, tb);
+          double ro[3];
+          PixelRay r;
+          if (cam.parallel) {
+            const double nx = nxs[size_t(x)], ny = nys[size_t(y)];
+            const Vec3 o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
+            double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+            bool miss = false;
+            for (int a = 0; a < 3; ++a) {
+              r.d[a] = fwd[a];
+              ro[a] = (o[a] - geo.origin[a]) / geo.spacing[a];
+              r.rd[a] = fwd[a] / geo.spacing[a];
+              if (r.rd[a] == 0) {
+                if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
+                continue;
+              }
+              double ta = (0 - ro[a]) / r.rd[a], tb = (hiIdx[a] - ro[a]) / r.rd[a];
+              if (ta > tb) std::swap(ta, tb);
+              t0 = std::max(t0, ta);
+              t1 = std::min(t1, tb);
+            }
+            r.t0 = t0;
+            r.hit = !miss && t0 <= t1;
+            if (r.hit) {
+              const double kx = std::floor((t1 - t0) / F.dt);
+              r.kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
+            }
+          } else {
+            for (int a = 0; a < 3; ++a) ro[a] = roEye[a];
+            r = grouped ? group[x - xg] : setupRay(S, x);
+          }
+          if (!r.hit) {
+            out[0] = out[1] = out[2] = out[3] = 0.f;
+            continue;
+          }
+          marchRay<R, Skip, Shade>(F, fetch, ro, r.rd, r.t0, r.kEnd, r.d, out, sTotal, kTotal);
         }
-        ++rTotal;
-        if (miss || !(t0 <= t1)) {
-          out[0] = out[1] = out[2] = out[3] = 0.f;
-          continue;
-        }
-        const double kx = std::floor((t1 - t0) / F.dt);
-        const int64_t kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
-        const double viewDir[3] = {d.x, d.y, d.z};  // the headlight: along the ray
-        marchRay<R, Skip, Shade>(F, fetch, ro, rd, t0, kEnd, viewDir, out, sTotal, kTotal);
       }
+    }
   }
   samples += sTotal;
   skips += kTotal;
@@ -1265,6 +1391,7 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   // * 16 + word) with 32-bit integers.
   const bool indexable = uint64_t(vol.stats().bricksStored + 1) * BlockSparseVolume::BRICK_VOLUME < (uint64_t(1) << 31) &&
                          uint64_t(vol.stats().bricks) * 2 * DIM < (uint64_t(1) << 31);
+  F.setup4 = opt.vectorized && !forceSse2 && cpuHasAvx2();
   F.lanes = apron && !opt.doublePrecision && !opt.shade && indexable && opt.vectorized && !forceSse2 && cpuHasAvx2() ? 8 : 1;
   // The bricks the AVX2 marcher may march through: the stored ones, but with skipping only the
   // visible ones (all bricks are stored when the volume was built dense).
