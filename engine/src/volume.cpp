@@ -933,6 +933,10 @@ MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[
     float kf = float(k);
     Avx2Chunk cur{};
     avx2Chunk(R, kf, kEnd - k, cur);
+    // AccT's sums with the transmittance broadcast (C += T e, T *= 1 - a: the same float
+    // operations lane by lane), kept in registers over the chunks.
+    __m128 C = acc.c, T4 = _mm_set1_ps(acc.T);
+    const __m128 one = _mm_set1_ps(1.f);
     while (cur.n) {  // n == 0: sample k needs clamping or is in an empty brick: the walk
       const bool more = cur.n == 8 && kEnd - k >= 8;
       Avx2Chunk next{};  // (idx unset when vis is 0)
@@ -940,15 +944,33 @@ MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[
       if (cur.vis) {
         _mm256_store_si256(reinterpret_cast<__m256i*>(idx), cur.idx);
         const int n = cur.n;
-        for (int j = 0; j < n; ++j) {
-          acc.add(table + idx[j]);
-          if (acc.T <= Tmin) {
-            samples += __builtin_popcount(cur.vis & ((2u << j) - 1u));
-            done = true;
-            break;
-          }
+        // The lanes without a termination test: T never grows (each factor 1 - a is in [0, 1] and
+        // rounding is monotone), so it fell to Tmin within the chunk iff it is there at its end;
+        // only then is the chunk composited again from its start, lane by lane with the test.
+        const __m128 C0 = C, T0 = T4;
+        const auto add = [&](int j) __attribute__((always_inline)) {
+          const float* e = table + idx[j];
+          C = _mm_add_ps(C, _mm_mul_ps(T4, _mm_loadu_ps(e)));
+          T4 = _mm_mul_ps(T4, _mm_sub_ps(one, _mm_set1_ps(e[3])));
+        };
+        if (n == 8) {
+          for (int j = 0; j < 8; ++j) add(j);
+        } else {
+          for (int j = 0; j < n; ++j) add(j);
         }
-        if (done) break;
+        if (_mm_cvtss_f32(T4) <= Tmin) {
+          C = C0;
+          T4 = T0;
+          int j = 0;
+          for (; j < n - 1; ++j) {
+            add(j);
+            if (_mm_cvtss_f32(T4) <= Tmin) break;
+          }
+          if (j == n - 1) add(j);  // (the last lane: where the end test found it)
+          samples += __builtin_popcount(cur.vis & ((2u << j) - 1u));
+          done = true;
+          break;
+        }
         samples += __builtin_popcount(cur.vis);
       }
       if (!more) {
@@ -959,6 +981,8 @@ MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[
       kf += 8.f;
       cur = next;
     }
+    acc.c = C;
+    acc.T = _mm_cvtss_f32(T4);
     if (done) break;
     if (k == kStart) {
       if (apronClampedSample<false>(F, ray, k, nullptr, acc, samples)) break;
