@@ -788,9 +788,11 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
 /// array is padded for it, see BlockSparseVolume::BRICK_PAD.)
 MT_AVX2 inline void gatherPairs(const uint8_t* base, __m256i off, __m256 & first, __m256 & second) {
   const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 1);
-  const __m256i m = _mm256_set1_epi32(0xFF);
-  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, m));
-  second = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(w, 8), m));
+  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, _mm256_set1_epi32(0xFF)));
+  // Byte 1 of each 32-bit lane into byte 0, zeros above (one shuffle for a shift and a mask).
+  const __m256i byte1 = _mm256_setr_epi8(1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1,
+                                         1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1);
+  second = _mm256_cvtepi32_ps(_mm256_shuffle_epi8(w, byte1));
 }
 MT_AVX2 inline void gatherPairs(const uint16_t* base, __m256i off, __m256 & first, __m256 & second) {
   const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 2);
@@ -833,30 +835,31 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
   const __m256 py = _mm256_add_ps(R.P0y, _mm256_mul_ps(kv, R.Sy));
   const __m256 pz = _mm256_add_ps(R.P0z, _mm256_mul_ps(kv, R.Sz));
   const __m256i ix = _mm256_cvttps_epi32(px), iy = _mm256_cvttps_epi32(py), iz = _mm256_cvttps_epi32(pz);
-  const __m256i clamp = _mm256_or_si256(
-      _mm256_or_si256(_mm256_or_si256(_mm256_cmpgt_epi32(ix, R.mx), _mm256_cmpgt_epi32(zeroi, ix)),
-                      _mm256_or_si256(_mm256_cmpgt_epi32(iy, R.my), _mm256_cmpgt_epi32(zeroi, iy))),
-      _mm256_or_si256(_mm256_cmpgt_epi32(iz, R.mz), _mm256_cmpgt_epi32(zeroi, iz)));
+  // Cells that need no clamping: 0 <= i <= n - 2 per axis, i.e. i <= n - 2 as unsigned.
+  const __m256i inside = _mm256_and_si256(
+      _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_min_epu32(ix, R.mx), ix), _mm256_cmpeq_epi32(_mm256_min_epu32(iy, R.my), iy)),
+      _mm256_cmpeq_epi32(_mm256_min_epu32(iz, R.mz), iz));
   // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
-  const __m256i b = _mm256_andnot_si256(
-      clamp, _mm256_add_epi32(
-                 _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), R.nb1),
-                                                     _mm256_srli_epi32(iy, LOG2DIM)),
-                                    R.nb0),
-                 _mm256_srli_epi32(ix, LOG2DIM)));
+  const __m256i b = _mm256_and_si256(
+      inside, _mm256_add_epi32(
+                  _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), R.nb1),
+                                                      _mm256_srli_epi32(iy, LOG2DIM)),
+                                     R.nb0),
+                  _mm256_srli_epi32(ix, LOG2DIM)));
   const __m256i ptr = _mm256_i32gather_epi32(R.bricks, b, 4);
   // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
-  // of the masks, issued without waiting for the brick pointers.
+  // of the masks, issued without waiting for the brick pointers; shifted into the sign bit.
   const __m256i lx = _mm256_and_si256(ix, seven), ly = _mm256_and_si256(iy, seven), lz = _mm256_and_si256(iz, seven);
   const __m256i bit = _mm256_add_epi32(lx, _mm256_add_epi32(_mm256_slli_epi32(ly, 3), _mm256_slli_epi32(lz, 6)));
   const __m256i word = _mm256_i32gather_epi32(R.words, _mm256_add_epi32(_mm256_slli_epi32(b, 4), _mm256_srli_epi32(bit, 5)), 4);
-  const __m256i vbit = _mm256_slli_epi32(_mm256_srlv_epi32(word, _mm256_and_si256(bit, _mm256_set1_epi32(31))), 31);
-  const __m256i stop = _mm256_or_si256(clamp, _mm256_cmpeq_epi32(ptr, _mm256_set1_epi32(-1)));
-  unsigned go = ~unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(stop))) & 0xFFu;
+  const __m256 vbit = _mm256_castsi256_ps(_mm256_sllv_epi32(word, _mm256_andnot_si256(bit, _mm256_set1_epi32(31))));
+  // Lanes taken: no clamping, and a brick marched through.
+  const __m256i take = _mm256_andnot_si256(_mm256_cmpeq_epi32(ptr, _mm256_set1_epi32(-1)), inside);
+  unsigned go = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(take)));
   if (left < 7) go &= (2u << left) - 1u;  // lanes 0..left are samples of the ray
   const int n = __builtin_ctz(~go);       // leading lanes taken (go < 256: at most 8)
   out.n = n;
-  out.vis = n == 0 ? 0u : unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(vbit))) & ((2u << (n - 1)) - 1u);
+  out.vis = n == 0 ? 0u : unsigned(_mm256_movemask_ps(vbit)) & ((2u << (n - 1)) - 1u);
   if (!out.vis) return;
   const __m256 zero = _mm256_setzero_ps();
   const __m256 fx = _mm256_max_ps(_mm256_sub_ps(px, _mm256_cvtepi32_ps(ix)), zero);
@@ -864,8 +867,8 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
   const __m256 fz = _mm256_max_ps(_mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz)), zero);
   // Voxel of corner 0: brick * 9^3 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz; 0 in the
   // lanes without a brick.
-  const __m256i off = _mm256_andnot_si256(
-      stop, _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(VOL)),
+  const __m256i off = _mm256_and_si256(
+      take, _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(VOL)),
                              _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz)))));
   __m256 c0, c1, c2, c3, c4, c5, c6, c7;  // corner dx + 2 dy + 4 dz
   gatherPairs(R.data, off, c0, c1);
@@ -884,7 +887,7 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
   // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
   // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
   const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), R.tlast), 2);
-  out.idx = _mm256_blendv_epi8(R.zeroEntry, e4, _mm256_srai_epi32(vbit, 31));
+  out.idx = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(R.zeroEntry), _mm256_castsi256_ps(e4), vbit));
 }
 
 /// marchApron<T, Skip, false> for 8 consecutive samples at a time. The same walk (apronEnter,
