@@ -25,9 +25,14 @@
 
 #include <omp.h>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 #include <string>
 #include <limits>
@@ -160,24 +165,104 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   {
     q[a] = std::min(255.0, std::max(0.0, (x[a] - lb.lo[a]) * (255.0 / (lb.hi[a] - lb.lo[a]))));
   }
+  // q inside [lo, hi] (integers) is floor(q) >= lo and ceil(q) <= hi: the test in bytes.
+  uint8_t qf[3], qc[3];
+  for (int a = 0; a < 3; ++a)
+  {
+    qf[a] = static_cast<uint8_t>(static_cast<int>(q[a]));
+    qc[a] = static_cast<uint8_t>(static_cast<int>(q[a]) + (static_cast<int>(q[a]) < q[a] ? 1 : 0));
+  }
+#if defined(__SSE2__)
+  // Eight candidates' boxes are 48 bytes, three 16-byte loads. A byte at offset p belongs to
+  // candidate p / 6, field p % 6: a lower bound (even field) passes when it is <= floor(q), an
+  // upper bound (odd) when it is >= ceil(q), i.e. when its complement is <= 255 - ceil(q). So
+  // the upper bounds are complemented (xor) and every byte compared with one threshold
+  // vector: max(y, T) == T.
+  alignas(16) static const uint8_t kFlip[48] = { 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff,
+    0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0,
+    0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff };
+  __m128i flip[3], thr[3];
+  {
+    const uint8_t pat[6] = { qf[0], static_cast<uint8_t>(255 - qc[0]), qf[1], static_cast<uint8_t>(255 - qc[1]),
+      qf[2], static_cast<uint8_t>(255 - qc[2]) };
+    alignas(16) uint8_t t[48];
+    for (int i = 0; i < 8; ++i)
+    {
+      std::memcpy(t + 6 * i, pat, 6);
+    }
+    for (int v = 0; v < 3; ++v)
+    {
+      flip[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(kFlip + 16 * v));
+      thr[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(t + 16 * v));
+    }
+  }
+#endif
   double closest[3], dist2;
   int subId = 0;
-  for (; k < r.end; ++k)
+  // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
+  // ids, so the first that contains the point is still the answer), then their point ids and
+  // points are prefetched ahead of the tests: each test's reads are random, and without the hint
+  // they stall one after another.
+  constexpr uint32_t kChunk = 16;
+  uint32_t cand[kChunk];
+  while (k < r.end)
   {
-    const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
-    if (q[0] < qb[0] || q[0] > qb[1] || q[1] < qb[2] || q[1] > qb[3] || q[2] < qb[4] || q[2] > qb[5])
+    const uint32_t stop = std::min<uint32_t>(r.end, k + kChunk);
+    int nc = 0;
+#if defined(__SSE2__)
+    for (; k + 8 <= stop; k += 8)
     {
-      continue;
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      uint64_t m = 0;
+      for (int v = 0; v < 3; ++v)
+      {
+        const __m128i y = _mm_xor_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(qb + 16 * v)), flip[v]);
+        const __m128i ok = _mm_cmpeq_epi8(_mm_max_epu8(y, thr[v]), thr[v]);
+        m |= static_cast<uint64_t>(static_cast<uint32_t>(_mm_movemask_epi8(ok))) << (16 * v);
+      }
+      for (int i = 0; i < 8; ++i)
+      {
+        cand[nc] = ids[k + i];
+        nc += ((m >> (6 * i)) & 63) == 63 ? 1 : 0;
+      }
     }
-    const vtkIdType id = ids[k];
-    if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+#endif
+    for (; k < stop; ++k)
     {
-      continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      const bool in0 = (qb[0] <= qf[0]) & (qb[1] >= qc[0]) & (qb[2] <= qf[1]) & (qb[3] >= qc[1]) &
+        (qb[4] <= qf[2]) & (qb[5] >= qc[2]);
+      cand[nc] = ids[k];
+      nc += in0 ? 1 : 0;
     }
-    FillCell(ds, in, id, cell);
-    if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
+    // Only ahead of tetrahedra (judged by the first candidate): their cheap pre-test would wait
+    // on the reads; a larger cell goes to VTK's EvaluatePosition (Newton steps), which hides
+    // them, and there the hints measured slower.
+    const bool ahead = nc > 1 && in.Cells.type(cand[0]) == mtree::kTetra;
+    for (int j = 0; ahead && j < std::min(nc, 4); ++j)
     {
-      return id;
+      in.Cells.prefetchPointIds(cand[j]);
+    }
+    for (int j = 0; j < nc; ++j)
+    {
+      if (ahead && j + 4 < nc)
+      {
+        in.Cells.prefetchPointIds(cand[j + 4]);
+      }
+      if (ahead && j + 2 < nc)
+      {
+        in.Cells.prefetchPoints(cand[j + 2]);
+      }
+      const vtkIdType id = cand[j];
+      if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+      {
+        continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
+      }
+      FillCell(ds, in, id, cell);
+      if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
+      {
+        return id;
+      }
     }
   }
   return -1;
