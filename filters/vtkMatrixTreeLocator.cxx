@@ -144,6 +144,84 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
   }
 }
 
+// The leaf's quantized boxes (6 bytes per reference: xlo xhi ylo yhi zlo zhi) against a
+// quantized range [qmin, qmax] per axis: a box passes when lo <= qmax and hi >= qmin on every
+// axis. FindCell asks with qmax = floor(q), qmin = ceil(q) (the box holds q); the ray queries
+// with the bounds of the segment's part in the leaf.
+class ByteBoxTest
+{
+public:
+  ByteBoxTest(const uint8_t qmax[3], const uint8_t qmin[3])
+  {
+    for (int a = 0; a < 3; ++a)
+    {
+      this->Max[a] = qmax[a];
+      this->Min[a] = qmin[a];
+    }
+#if defined(__SSE2__)
+    // Eight boxes are 48 bytes, three 16-byte loads. A byte at offset p is field p % 6 of box
+    // p / 6: a lower bound (even field) passes when it is <= qmax, an upper bound (odd) when it
+    // is >= qmin, i.e. when its complement is <= 255 - qmin. So the upper bounds are
+    // complemented (xor) and every byte compared with one threshold: max(y, T) == T.
+    alignas(16) static const uint8_t kFlip[48] = { 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0,
+      0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff,
+      0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff };
+    const uint8_t pat[6] = { qmax[0], static_cast<uint8_t>(255 - qmin[0]), qmax[1],
+      static_cast<uint8_t>(255 - qmin[1]), qmax[2], static_cast<uint8_t>(255 - qmin[2]) };
+    alignas(16) uint8_t t[48];
+    for (int i = 0; i < 8; ++i)
+    {
+      std::memcpy(t + 6 * i, pat, 6);
+    }
+    for (int v = 0; v < 3; ++v)
+    {
+      this->Flip[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(kFlip + 16 * v));
+      this->Thr[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(t + 16 * v));
+    }
+#endif
+  }
+
+  // The k in [k, stop) whose box passes, ascending, into out; their number.
+  int gather(const uint8_t* boxes, uint32_t k, uint32_t stop, uint32_t* out) const
+  {
+    int n = 0;
+#if defined(__SSE2__)
+    for (; k + 8 <= stop; k += 8)
+    {
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      uint64_t m = 0;
+      for (int v = 0; v < 3; ++v)
+      {
+        const __m128i y =
+          _mm_xor_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(qb + 16 * v)), this->Flip[v]);
+        const __m128i ok = _mm_cmpeq_epi8(_mm_max_epu8(y, this->Thr[v]), this->Thr[v]);
+        m |= static_cast<uint64_t>(static_cast<uint32_t>(_mm_movemask_epi8(ok))) << (16 * v);
+      }
+      for (int i = 0; i < 8; ++i)
+      {
+        out[n] = k + i;
+        n += ((m >> (6 * i)) & 63) == 63 ? 1 : 0;
+      }
+    }
+#endif
+    for (; k < stop; ++k)
+    {
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      const bool pass = (qb[0] <= this->Max[0]) & (qb[1] >= this->Min[0]) & (qb[2] <= this->Max[1]) &
+        (qb[3] >= this->Min[1]) & (qb[4] <= this->Max[2]) & (qb[5] >= this->Min[2]);
+      out[n] = k;
+      n += pass ? 1 : 0;
+    }
+    return n;
+  }
+
+private:
+  uint8_t Max[3], Min[3];
+#if defined(__SSE2__)
+  __m128i Flip[3], Thr[3];
+#endif
+};
+
 // vtkTetra::EvaluatePosition accepts barycentric coordinates within this of [0, 1].
 constexpr double kTetraTolerance = 1e-3;
 
@@ -172,31 +250,7 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     qf[a] = static_cast<uint8_t>(static_cast<int>(q[a]));
     qc[a] = static_cast<uint8_t>(static_cast<int>(q[a]) + (static_cast<int>(q[a]) < q[a] ? 1 : 0));
   }
-#if defined(__SSE2__)
-  // Eight candidates' boxes are 48 bytes, three 16-byte loads. A byte at offset p belongs to
-  // candidate p / 6, field p % 6: a lower bound (even field) passes when it is <= floor(q), an
-  // upper bound (odd) when it is >= ceil(q), i.e. when its complement is <= 255 - ceil(q). So
-  // the upper bounds are complemented (xor) and every byte compared with one threshold
-  // vector: max(y, T) == T.
-  alignas(16) static const uint8_t kFlip[48] = { 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff,
-    0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0,
-    0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff };
-  __m128i flip[3], thr[3];
-  {
-    const uint8_t pat[6] = { qf[0], static_cast<uint8_t>(255 - qc[0]), qf[1], static_cast<uint8_t>(255 - qc[1]),
-      qf[2], static_cast<uint8_t>(255 - qc[2]) };
-    alignas(16) uint8_t t[48];
-    for (int i = 0; i < 8; ++i)
-    {
-      std::memcpy(t + 6 * i, pat, 6);
-    }
-    for (int v = 0; v < 3; ++v)
-    {
-      flip[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(kFlip + 16 * v));
-      thr[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(t + 16 * v));
-    }
-  }
-#endif
+  const ByteBoxTest boxTest(qf, qc);
   double closest[3], dist2;
   int subId = 0;
   // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
@@ -208,33 +262,12 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   while (k < r.end)
   {
     const uint32_t stop = std::min<uint32_t>(r.end, k + kChunk);
-    int nc = 0;
-#if defined(__SSE2__)
-    for (; k + 8 <= stop; k += 8)
+    const int nc = boxTest.gather(boxes, k, stop, cand);
+    for (int j = 0; j < nc; ++j)
     {
-      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
-      uint64_t m = 0;
-      for (int v = 0; v < 3; ++v)
-      {
-        const __m128i y = _mm_xor_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(qb + 16 * v)), flip[v]);
-        const __m128i ok = _mm_cmpeq_epi8(_mm_max_epu8(y, thr[v]), thr[v]);
-        m |= static_cast<uint64_t>(static_cast<uint32_t>(_mm_movemask_epi8(ok))) << (16 * v);
-      }
-      for (int i = 0; i < 8; ++i)
-      {
-        cand[nc] = ids[k + i];
-        nc += ((m >> (6 * i)) & 63) == 63 ? 1 : 0;
-      }
+      cand[j] = ids[cand[j]];
     }
-#endif
-    for (; k < stop; ++k)
-    {
-      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
-      const bool in0 = (qb[0] <= qf[0]) & (qb[1] >= qc[0]) & (qb[2] <= qf[1]) & (qb[3] >= qc[1]) &
-        (qb[4] <= qf[2]) & (qb[5] >= qc[2]);
-      cand[nc] = ids[k];
-      nc += in0 ? 1 : 0;
-    }
+    k = stop;
     // Only ahead of tetrahedra (judged by the first candidate): their cheap pre-test would wait
     // on the reads; a larger cell goes to VTK's EvaluatePosition (Newton steps), which hides
     // them, and there the hints measured slower.
@@ -334,7 +367,7 @@ public:
       std::fabs(lb.hi.x), std::fabs(lb.hi.y), std::fabs(lb.hi.z) });
     // Per axis: t of quantized coordinate q is A + q B (moving axes), within +-M; a static
     // axis needs its coordinate's q within [qlo, qhi] grown by the margin.
-    double A[3], B[3], M[3], SLo[3], SHi[3];
+    double A[3], B[3], M[3], SLo[3], SHi[3], Margin[3];
     bool moving[3];
     bool anyStatic = false;
     for (int a = 0; a < 3; ++a)
@@ -346,6 +379,7 @@ public:
       }
       const double unit = w / 255.0;
       const double margin = 1e-7 * w + 16 * eps * mag; // world units
+      Margin[a] = margin;
       moving[a] = this->D[a] != 0;
       if (moving[a])
       {
@@ -367,9 +401,49 @@ public:
       }
     }
     const uint8_t* boxes = this->In.LeafBoxes.data() + 6 * static_cast<size_t>(begin);
-    int n = 0;
-    for (uint32_t k = 0; k < count; ++k)
+    // First the boxes against the bounds of the segment's part in the leaf (a byte test, eight
+    // boxes at a time): t in [0, bound] clipped to the leaf grown by the margin (every grown
+    // box lies in it), then that part's quantized range per axis, grown by the margin (and
+    // 1e-3 of a quantum for round-off), rounded outwards. NaN gives the full range.
+    double ta = 0.0, tb = bound;
+    for (int a = 0; a < 3; ++a)
     {
+      if (moving[a])
+      {
+        const double t1 = A[a], t2 = A[a] + 255 * B[a];
+        ta = std::max(ta, std::min(t1, t2) - M[a]);
+        tb = std::min(tb, std::max(t1, t2) + M[a]);
+      }
+      else if (SHi[a] < 0 || SLo[a] > 255)
+      {
+        return 0;
+      }
+    }
+    if (!(ta <= tb))
+    {
+      return 0;
+    }
+    uint8_t qmin[3], qmax[3];
+    for (int a = 0; a < 3; ++a)
+    {
+      const double unit = (lb.hi[a] - lb.lo[a]) / 255.0;
+      const double q0 = (this->O[a] + this->D[a] * ta - lb.lo[a]) / unit;
+      const double q1 = (this->O[a] + this->D[a] * tb - lb.lo[a]) / unit;
+      const double mq = Margin[a] / unit + 1e-3;
+      const double lo = std::min(q0, q1) - mq, hi = std::max(q0, q1) + mq;
+      qmin[a] = static_cast<uint8_t>(lo > 0 ? (lo < 255 ? std::floor(lo) : 255) : 0);
+      qmax[a] = static_cast<uint8_t>(hi < 255 ? (hi > 0 ? std::ceil(hi) : 0) : 255);
+    }
+    const ByteBoxTest boxTest(qmax, qmin);
+    constexpr uint32_t kChunk = 64;
+    uint32_t idx[kChunk];
+    int n = 0;
+    for (uint32_t k0 = 0; k0 < count; k0 += kChunk)
+    {
+      const int ng = boxTest.gather(boxes, k0, std::min(count, k0 + kChunk), idx);
+      for (int g = 0; g < ng; ++g)
+      {
+      const uint32_t k = idx[g];
       const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
       double te = 0.0, tx = bound;
       for (int a = 0; a < 3; ++a)
@@ -390,6 +464,7 @@ public:
         out[n].t = te;
         out[n].k = k;
         ++n;
+      }
       }
     }
     // Insertion sort by entry t (a handful of survivors).
@@ -723,6 +798,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   // LeafSegmentFilter. Those that pass are taken in the order the segment enters their boxes,
   // and the leaf stops at the first whose entry lies beyond the best hit so far.
   const LeafSegmentFilter leafFilter(in, o, d, tol);
+  vtkIdType filled = -1; // the cell `cell` holds
   // Cells whose hit is certain from the engine's copy (firstHitIfCertain, tol 0: tetrahedra, and
   // hexahedra, wedges and pyramids with planar faces) are not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
   // the end, for the exact t, x and pcoords. Should VTK not confirm it (it never did in the
@@ -779,6 +855,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         return;
       }
       FillCell(this->DataSet, in, id, cell);
+      filled = id;
       if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
       {
         best = tt;
@@ -839,6 +916,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       break;
     }
     FillCell(this->DataSet, in, deferredId, cell);
+    filled = deferredId;
     if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
     {
       if (bestId < 0 || tt < best)
@@ -858,7 +936,10 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   }
   t = best;
   cellId = bestId;
-  FillCell(this->DataSet, in, bestId, cell);
+  if (filled != bestId) // the winner is usually the last cell VTK evaluated: already there
+  {
+    FillCell(this->DataSet, in, bestId, cell);
+  }
   return 1;
 }
 

@@ -419,8 +419,12 @@ def test_rays_equal_brute_force_vtk(grid):
             mismatches += 1
             bad.append((kind, tol, list(p1), list(p2), ok, t, oa, float(to)))
             continue
-        if ok:  # our cell is hit by VTK at our t
+        if ok:  # the cell handed back is our cell, as GetCell gives it, and VTK hits it at our t
             ds.GetCell(int(cid), gc)
+            assert gc2.GetCellType() == gc.GetCellType()
+            assert [gc2.GetPointId(k) for k in range(gc2.GetNumberOfPoints())] == \
+                [gc.GetPointId(k) for k in range(gc.GetNumberOfPoints())]
+            assert np.array_equal(vtk_to_numpy(gc2.GetPoints().GetData()), vtk_to_numpy(gc.GetPoints().GetData()))
             tc = reference(0.0)
             assert gc.IntersectWithLine(list(p1), list(p2), tol, tc, x, pc, sub)
             assert float(tc) == float(to)
