@@ -280,6 +280,19 @@ struct Frame {
   double ambient, diffuse, specular, specularPower;
 };
 
+/// A ray of a tile queued for marchApronAvx2Pair (index-space origin and direction, entry, last
+/// sample, its pixel), and a tile's queue.
+struct PendingRay {
+  double ro[3], rd[3], t0;
+  int64_t kEnd;
+  float* out;
+};
+struct PendingRayList {
+  static constexpr int CAPACITY = 64;
+  PendingRay rays[CAPACITY];
+  int count = 0;
+};
+
 /// Fetch policies: enter(brick) resolves a brick's storage once; corners(local cell) reads the 8
 /// corners (x fastest) of a cell of that brick as floats (offset not applied). false: the cell
 /// reads an absent block, so it is invisible (opacity 0).
@@ -604,7 +617,9 @@ struct ApronRay {
   __m128 P0, S;
   __m128 nf;     // points per axis (float; 1 in lane 3)
   __m128i nm2;   // the last cell per axis, n - 2 (0 in lane 3)
-  ApronRay(const Frame& F, const double o[3], const double d[3], double t0) {
+  ApronRay() = default;
+  ApronRay(const Frame& F, const double o[3], const double d[3], double t0) { set(F, o, d, t0); }
+  void set(const Frame& F, const double o[3], const double d[3], double t0) {
     for (int a = 0; a < 3; ++a) {
       P0s[a] = float(o[a] + d[a] * t0);
       Ss[a] = float(d[a] * F.dt);
@@ -890,6 +905,144 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
   out.idx = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(R.zeroEntry), _mm256_castsi256_ps(e4), vbit));
 }
 
+/// One ray of marchApronAvx2 as a resumable state: start() sets it up, each step() does one
+/// step of the walk or one chunk and returns false once the ray is done (its pixel written), so
+/// that two rays can be marched in turns (marchApronAvx2Pair): the serial latency of one ray's
+/// walk and compositing then overlaps the other ray's work.
+template <typename T, bool Skip>
+struct Avx2RayMarch {
+  Avx2Ray<T> R;
+  ApronRay ray;
+  ApronFetch<T> fetch;
+  __m128 C, T4;  // AccT's sums with the transmittance broadcast (the same float operations lane by lane)
+  Avx2Chunk cur;
+  const Frame* F;
+  float* out;
+  int64_t k, kEnd;
+  uint64_t samples, skips;
+  float kf, Tmin;
+  bool chunk;  // in a run of chunks (cur is the next one to composite); else the walk is next
+
+  explicit Avx2RayMarch(const ApronFetch<T>& f) : fetch(f) {}
+
+  MT_AVX2 __attribute__((always_inline)) inline void start(const Frame& Fr, const double o[3], const double d[3],
+                                                           double t0, int64_t kEnd_, float* out_) {
+    F = &Fr;
+    out = out_;
+    kEnd = kEnd_;
+    k = 0;
+    samples = skips = 0;
+    chunk = false;
+    Tmin = 1.f - Fr.threshold;
+    ray.set(Fr, o, d, t0);
+    R.P0x = _mm256_set1_ps(ray.P0s[0]), R.P0y = _mm256_set1_ps(ray.P0s[1]), R.P0z = _mm256_set1_ps(ray.P0s[2]);
+    R.Sx = _mm256_set1_ps(ray.Ss[0]), R.Sy = _mm256_set1_ps(ray.Ss[1]), R.Sz = _mm256_set1_ps(ray.Ss[2]);
+    R.mx = _mm256_set1_epi32(Fr.n[0] - 2), R.my = _mm256_set1_epi32(Fr.n[1] - 2), R.mz = _mm256_set1_epi32(Fr.n[2] - 2);
+    R.nb0 = _mm256_set1_epi32(Fr.nb[0]), R.nb1 = _mm256_set1_epi32(Fr.nb[1]);
+    R.tlo = _mm256_set1_ps(Fr.tlo), R.tscale = _mm256_set1_ps(Fr.tscale), R.offset = _mm256_set1_ps(Fr.offset);
+    R.tlast = _mm256_set1_epi32(Fr.tlast);
+    R.zeroEntry = _mm256_set1_epi32(4 * (Fr.tlast + 1));
+    R.bricks = reinterpret_cast<const int*>(Fr.runBricks);
+    R.words = reinterpret_cast<const int*>(fetch.masks);
+    R.data = fetch.data;
+    C = _mm_setzero_ps();
+    T4 = _mm_set1_ps(1.f);
+  }
+
+  /// The ray is done: its pixel and counts.
+  MT_AVX2 __attribute__((always_inline)) inline bool finish(uint64_t& samplesOut, uint64_t& skipsOut) {
+    _mm_storeu_ps(out, C);
+    samplesOut += samples;
+    skipsOut += skips;
+    return false;
+  }
+
+  MT_AVX2 __attribute__((noinline)) bool step(uint64_t& samplesOut, uint64_t& skipsOut) {
+    const Frame& Fr = *F;
+    if (!chunk) {
+      // The walk: to the first sample in a stored visible brick (or one that needs clamping).
+      if (k > kEnd) return finish(samplesOut, skipsOut);
+      int bo[3];
+      if (!apronEnter<T, Skip>(Fr, ray, Fr.vol->levelCount(), kEnd, fetch, k, skips, bo)) return true;
+      kf = float(k);
+      avx2Chunk(R, kf, kEnd - k, cur);
+      if (cur.n == 0) {  // sample k needs clamping: the general path
+        AccT acc;
+        acc.c = C;
+        acc.T = _mm_cvtss_f32(T4);
+        const bool opaque = apronClampedSample<false>(Fr, ray, k, nullptr, acc, samples);
+        C = acc.c;
+        T4 = _mm_set1_ps(acc.T);
+        if (opaque) return finish(samplesOut, skipsOut);
+        ++k;
+        return true;
+      }
+      chunk = true;
+    }
+    // The run of chunks (in locals: registers): each one's successor is prepared first (nothing
+    // in it depends on this one's compositing), so that its gathers' latency overlaps the serial
+    // compositing.
+    __m128 Cr = C, Tr = T4;
+    int64_t kr = k;
+    float kfr = kf;
+    Avx2Chunk c = cur;
+    const float* const table = Fr.table;
+    const __m128 one = _mm_set1_ps(1.f);
+    const float Tm = Tmin;
+    const int64_t ke = kEnd;
+    alignas(32) int32_t idx[8];
+    for (;;) {
+      const bool more = c.n == 8 && ke - kr >= 8;
+      Avx2Chunk next{};  // (idx unset when vis is 0)
+      if (more) avx2Chunk(R, kfr + 8.f, ke - kr - 8, next);
+      if (c.vis) {
+        _mm256_store_si256(reinterpret_cast<__m256i*>(idx), c.idx);
+        const int n = c.n;
+        // The lanes without a termination test: T never grows (each factor 1 - a is in [0, 1] and
+        // rounding is monotone), so it fell to Tmin within the chunk iff it is there at its end;
+        // only then is the chunk composited again from its start, lane by lane with the test.
+        const __m128 C0 = Cr, T0 = Tr;
+        const auto add = [&](int j) __attribute__((always_inline)) {
+          const float* e = table + idx[j];
+          Cr = _mm_add_ps(Cr, _mm_mul_ps(Tr, _mm_loadu_ps(e)));
+          Tr = _mm_mul_ps(Tr, _mm_sub_ps(one, _mm_set1_ps(e[3])));
+        };
+        if (n == 8) {
+          for (int j = 0; j < 8; ++j) add(j);
+        } else {
+          for (int j = 0; j < n; ++j) add(j);
+        }
+        if (_mm_cvtss_f32(Tr) <= Tm) {
+          Cr = C0;
+          Tr = T0;
+          int j = 0;
+          for (; j < n - 1; ++j) {
+            add(j);
+            if (_mm_cvtss_f32(Tr) <= Tm) break;
+          }
+          if (j == n - 1) add(j);  // (the last lane: where the end test found it)
+          samples += __builtin_popcount(c.vis & ((2u << j) - 1u));
+          C = Cr;
+          return finish(samplesOut, skipsOut);
+        }
+        samples += __builtin_popcount(c.vis);
+      }
+      if (!more) {
+        kr += c.n;
+        break;
+      }
+      kr += 8;  // not k += n: the next chunk's positions need not wait for this one's gathers
+      kfr += 8.f;
+      c = next;
+    }
+    C = Cr;
+    T4 = Tr;
+    k = kr;
+    chunk = false;
+    return true;
+  }
+};
+
 /// marchApron<T, Skip, false> for 8 consecutive samples at a time. The same walk (apronEnter,
 /// apronClampedSample) finds the first sample in a stored visible brick; from there samples
 /// k..k+7 get their positions (lane j: P0 + (kf + j) S, the same float operations as the SSE2
@@ -903,101 +1056,51 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
 /// lane with an all-zero entry (which changes nothing, exactly; it is not counted as a sample):
 /// the image, the early-termination point and the sample and skip counts are marchApron's
 /// exactly. Rays with more than 2^24 - 8 samples are not sent here (kf + j must be exact).
-/// Software-pipelined: the next chunk (its positions, gathers, interpolation and table indices,
-/// none of which depends on this one's) is prepared before this one is composited, so that its
-/// gathers' latency overlaps the serial compositing instead of following it.
 template <typename T, bool Skip>
 MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[3], const double d[3], double t0,
                             int64_t kEnd, float out[4], uint64_t& samplesOut, uint64_t& skipsOut) {
-  uint64_t samples = 0, skips = 0;
-  AccT acc;
-  const float Tmin = 1.f - F.threshold;
-  const ApronRay ray(F, o, d, t0);
-  Avx2Ray<T> R;
-  R.P0x = _mm256_set1_ps(ray.P0s[0]), R.P0y = _mm256_set1_ps(ray.P0s[1]), R.P0z = _mm256_set1_ps(ray.P0s[2]);
-  R.Sx = _mm256_set1_ps(ray.Ss[0]), R.Sy = _mm256_set1_ps(ray.Ss[1]), R.Sz = _mm256_set1_ps(ray.Ss[2]);
-  R.mx = _mm256_set1_epi32(F.n[0] - 2), R.my = _mm256_set1_epi32(F.n[1] - 2), R.mz = _mm256_set1_epi32(F.n[2] - 2);
-  R.nb0 = _mm256_set1_epi32(F.nb[0]), R.nb1 = _mm256_set1_epi32(F.nb[1]);
-  R.tlo = _mm256_set1_ps(F.tlo), R.tscale = _mm256_set1_ps(F.tscale), R.offset = _mm256_set1_ps(F.offset);
-  R.tlast = _mm256_set1_epi32(F.tlast);
-  R.zeroEntry = _mm256_set1_epi32(4 * (F.tlast + 1));
-  R.bricks = reinterpret_cast<const int*>(F.runBricks);
-  R.words = reinterpret_cast<const int*>(fetch.masks);
-  R.data = fetch.data;
-  const float* const table = F.table;
-  const int levels = F.vol->levelCount();
-  alignas(32) int32_t idx[8];
-  int64_t k = 0;
-  while (k <= kEnd) {
-    int bo[3];
-    if (!apronEnter<T, Skip>(F, ray, levels, kEnd, fetch, k, skips, bo)) continue;
-    const int64_t kStart = k;
-    bool done = false;
-    float kf = float(k);
-    Avx2Chunk cur{};
-    avx2Chunk(R, kf, kEnd - k, cur);
-    // AccT's sums with the transmittance broadcast (C += T e, T *= 1 - a: the same float
-    // operations lane by lane), kept in registers over the chunks.
-    __m128 C = acc.c, T4 = _mm_set1_ps(acc.T);
-    const __m128 one = _mm_set1_ps(1.f);
-    while (cur.n) {  // n == 0: sample k needs clamping or is in an empty brick: the walk
-      const bool more = cur.n == 8 && kEnd - k >= 8;
-      Avx2Chunk next{};  // (idx unset when vis is 0)
-      if (more) avx2Chunk(R, kf + 8.f, kEnd - k - 8, next);
-      if (cur.vis) {
-        _mm256_store_si256(reinterpret_cast<__m256i*>(idx), cur.idx);
-        const int n = cur.n;
-        // The lanes without a termination test: T never grows (each factor 1 - a is in [0, 1] and
-        // rounding is monotone), so it fell to Tmin within the chunk iff it is there at its end;
-        // only then is the chunk composited again from its start, lane by lane with the test.
-        const __m128 C0 = C, T0 = T4;
-        const auto add = [&](int j) __attribute__((always_inline)) {
-          const float* e = table + idx[j];
-          C = _mm_add_ps(C, _mm_mul_ps(T4, _mm_loadu_ps(e)));
-          T4 = _mm_mul_ps(T4, _mm_sub_ps(one, _mm_set1_ps(e[3])));
-        };
-        if (n == 8) {
-          for (int j = 0; j < 8; ++j) add(j);
-        } else {
-          for (int j = 0; j < n; ++j) add(j);
-        }
-        if (_mm_cvtss_f32(T4) <= Tmin) {
-          C = C0;
-          T4 = T0;
-          int j = 0;
-          for (; j < n - 1; ++j) {
-            add(j);
-            if (_mm_cvtss_f32(T4) <= Tmin) break;
-          }
-          if (j == n - 1) add(j);  // (the last lane: where the end test found it)
-          samples += __builtin_popcount(cur.vis & ((2u << j) - 1u));
-          done = true;
-          break;
-        }
-        samples += __builtin_popcount(cur.vis);
-      }
-      if (!more) {
-        k += cur.n;
-        break;
-      }
-      k += 8;  // not k += n: the next chunk's positions need not wait for this one's gathers
-      kf += 8.f;
-      cur = next;
-    }
-    acc.c = C;
-    acc.T = _mm_cvtss_f32(T4);
-    if (done) break;
-    if (k == kStart) {
-      if (apronClampedSample<false>(F, ray, k, nullptr, acc, samples)) break;
-      ++k;
+  Avx2RayMarch<T, Skip> m(fetch);
+  m.start(F, o, d, t0, kEnd, out);
+  while (m.step(samplesOut, skipsOut)) {
+  }
+}
+
+
+/// marchApronAvx2 for `count` rays, SLOTS at a time in turns (a finished ray's slot takes the
+/// next one): every ray's steps are exactly those marchApronAvx2 takes, only their order across
+/// rays changes, so the images and counts are the same. A step (one walk step, or one run of
+/// chunks) is a call, so the rays' latency chains overlap across calls.
+template <typename T, bool Skip, int SLOTS = 2>
+MT_AVX2 void marchApronAvx2Pair(const Frame& F, const ApronFetch<T>& fetch, const PendingRay* rays, int count,
+                                uint64_t& samplesOut, uint64_t& skipsOut) {
+  Avx2RayMarch<T, Skip> m[SLOTS] = {Avx2RayMarch<T, Skip>(fetch), Avx2RayMarch<T, Skip>(fetch)};
+  bool live[SLOTS];
+  int next = 0, active = 0;
+  for (int i = 0; i < SLOTS; ++i) {
+    live[i] = next < count;
+    if (live[i]) {
+      m[i].start(F, rays[next].ro, rays[next].rd, rays[next].t0, rays[next].kEnd, rays[next].out);
+      ++next;
+      ++active;
     }
   }
-  samplesOut += samples;
-  skipsOut += skips;
-  _mm_storeu_ps(out, acc.c);
+  while (active) {
+    for (int i = 0; i < SLOTS; ++i) {
+      if (live[i] && !m[i].step(samplesOut, skipsOut)) {
+        live[i] = next < count;
+        if (live[i]) {
+          m[i].start(F, rays[next].ro, rays[next].rd, rays[next].t0, rays[next].kEnd, rays[next].out);
+          ++next;
+        } else {
+          --active;
+        }
+      }
+    }
+  }
 }
 #endif  // MT_VOLUME_AVX2
 #endif
+
 
 /// march() for every storage; for UInt8/UInt16 in float the SSE2 marcher, or unshaded the AVX2
 /// one where renderVolume chose it (F.lanes == 8).
@@ -1021,6 +1124,26 @@ inline void marchRay(const Frame& F, const ApronFetch<T>& fetch, const double o[
   }
 #endif
   marchApron<T, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
+}
+#endif
+
+/// Whether marchImage queues a ray for marchApronAvx2Pair (the rays marchRay sends to
+/// marchApronAvx2), and the queue's consumer: nothing for other storages or settings.
+template <typename R, bool Shade, typename Fetch>
+inline bool pairable(const Frame&, const Fetch&, int64_t) {
+  return false;
+}
+template <typename R, bool Skip, bool Shade, typename Fetch>
+inline void marchPending(const Frame&, const Fetch&, const PendingRayList&, uint64_t&, uint64_t&) {}
+#if MT_VOLUME_AVX2
+template <typename R, bool Shade, typename T>
+inline bool pairable(const Frame& F, const ApronFetch<T>&, int64_t kEnd) {
+  return std::is_same<R, float>::value && !Shade && F.lanes == 8 && kEnd < (int64_t(1) << 24) - 8;
+}
+template <typename R, bool Skip, bool Shade, typename T>
+inline void marchPending(const Frame& F, const ApronFetch<T>& fetch, const PendingRayList& list, uint64_t& samples,
+                         uint64_t& skips) {
+  marchApronAvx2Pair<T, Skip>(F, fetch, list.rays, list.count, samples, skips);
 }
 #endif
 
@@ -1215,6 +1338,7 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   const bool setup4 = false;
 #endif
   constexpr int TILE = 8;
+  static_assert(TILE * TILE <= PendingRayList::CAPACITY, "a tile's rays must fit the queue");
   const int tx = (w + TILE - 1) / TILE, ty = (h + TILE - 1) / TILE;
   uint64_t sTotal = 0, kTotal = 0, rTotal = 0;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : sTotal, kTotal, rTotal)
@@ -1222,6 +1346,7 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
     const int x0 = (tile % tx) * TILE, y0 = (tile / tx) * TILE;
     const int x1 = std::min(w, x0 + TILE), y1 = std::min(h, y0 + TILE);
     RaySetupFrame S = S0;
+    PendingRayList pending;  // this tile's rays for marchApronAvx2Pair (at most TILE^2 = 64)
     for (int y = y0; y < y1; ++y) {
       for (int a = 0; a < 3; ++a) S.upY[a] = upY[size_t(y)][a];
       const bool rowHit = y >= hit.y0 && y <= hit.y1;
@@ -1272,10 +1397,22 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
             out[0] = out[1] = out[2] = out[3] = 0.f;
             continue;
           }
+          if (pairable<R, Shade>(F, fetch, r.kEnd)) {
+            PendingRay& q = pending.rays[pending.count++];
+            for (int a = 0; a < 3; ++a) {
+              q.ro[a] = ro[a];
+              q.rd[a] = r.rd[a];
+            }
+            q.t0 = r.t0;
+            q.kEnd = r.kEnd;
+            q.out = out;
+            continue;
+          }
           marchRay<R, Skip, Shade>(F, fetch, ro, r.rd, r.t0, r.kEnd, r.d, out, sTotal, kTotal);
         }
       }
     }
+    if (pending.count) marchPending<R, Skip, Shade>(F, fetch, pending, sTotal, kTotal);
   }
   samples += sTotal;
   skips += kTotal;
