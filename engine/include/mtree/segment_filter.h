@@ -267,37 +267,38 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
   const double m = 1e-6 + 1e-9 * far + 1024 * eps * mag / L;
   // Each face: unit outward normal nu and a point o on it; l1 = -dot(nu, p1 - o) / L is how far
   // inside the plane p1 lies (units of L), dl its change along d.
+  const double invL = 1.0 / L;
   double l1[6], dl[6];
-  Vec3 nu[6], fo[6];
   const int nf = topo->numFaces;
   for (int i = 0; i < nf; ++i) {
     const int* v = topo->face[i];
     const bool quad = topo->faceSize[i] == 4;
     Vec3 nrm = quad ? cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[1]]) : cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
-    const double nn = norm(nrm);
-    if (!(nn > 1e-6 * L * L)) return false;  // a degenerate face
-    nrm = nrm * (1.0 / nn);
-    fo[i] = p[v[0]];
-    // Planar (the other points on the plane through v[0] to round-off) and convex (every
-    // point of the cell on the inner side); the topology's faces are wound outward, but a
-    // tangled cell may not be: the side is taken from the cell's points, all on one side.
+    const double nn2 = dot(nrm, nrm);
+    if (!(nn2 > 1e-12 * L * L * L * L)) return false;  // a degenerate face
+    // Unit normal scaled by 1 / L: dot products with it are distances in units of L.
+    nrm = nrm * (invL / std::sqrt(nn2));
+    const Vec3 o = p[v[0]];
+    // Planar (a quad's other points on the plane through v[0] to round-off; a triangle's are
+    // by construction) and convex (every other point of the cell on one side, the inner
+    // one); the topology's faces are wound outward, but a tangled cell may not be: the side
+    // is taken from the cell's points.
+    unsigned onFace = 0;
+    for (int j = 0; j < topo->faceSize[i]; ++j) onFace |= 1u << v[j];
+    if (quad)
+      for (int j = 1; j < 4; ++j)
+        if (!(std::fabs(dot(nrm, p[v[j]] - o)) <= planeEps)) return false;  // warped face
     double inner = 0;
     for (int k = 0; k < n; ++k) {
-      const double s = dot(nrm, p[k] - fo[i]) / L;
-      bool onFace = false;
-      for (int j = 0; j < topo->faceSize[i]; ++j) onFace = onFace || v[j] == k;
-      if (onFace) {
-        if (!(std::fabs(s) <= planeEps)) return false;  // warped face
-        continue;
-      }
-      if (std::fabs(s) <= 1e-3) return false;  // a point (nearly) on another face's plane: flat or odd
+      if ((onFace >> k) & 1) continue;
+      const double s = dot(nrm, p[k] - o);
+      if (!(std::fabs(s) > 1e-3)) return false;  // a point (nearly) on another face's plane: flat or odd
       if (inner == 0) inner = s;
       else if ((s > 0) != (inner > 0)) return false;  // points on both sides: not convex
     }
     if (inner > 0) nrm = nrm * -1.0;  // outward: the cell's points lie at negative distance
-    nu[i] = nrm;
-    l1[i] = -dot(nrm, f.p1 - fo[i]) / L;
-    dl[i] = -dot(nrm, f.d) / L;
+    l1[i] = -dot(nrm, f.p1 - o);
+    dl[i] = -dot(nrm, f.d);
   }
   double te = -std::numeric_limits<double>::infinity(), tx = std::numeric_limits<double>::infinity();
   int ie = -1, ix = -1;
@@ -324,8 +325,8 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
       const Vec3 x = f.p1 + f.d * tc;
       for (int k = 0; k < 2; ++k) {
         const Vec3 a = p[v[k]], e = p[v[k + 2]] - a;
-        const double ee = norm(e);
-        if (!(norm(cross(e, x - a)) >= m * L * ee)) return false;
+        const Vec3 c = cross(e, x - a);  // |c| / |e|: the distance to the diagonal's line
+        if (!(dot(c, c) >= m * m * L * L * dot(e, e))) return false;
       }
     }
   }
