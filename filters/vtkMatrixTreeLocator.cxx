@@ -840,12 +840,14 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       }
       // Then the cell's points: most cells whose box the segment crosses are proved missed
       // (or hit only beyond the best t so far) without VTK (segment_filter.h).
-      if (!mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), bound))
+      double tc;
+      const mtree::CellVerdict verdict =
+        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferTets, tc);
+      if (verdict == mtree::CellVerdict::kMiss)
       {
         return;
       }
-      double tc;
-      if (deferTets && mtree::firstHitIfCertain(frame, in.Cells, static_cast<size_t>(id), tc))
+      if (verdict == mtree::CellVerdict::kCertain)
       {
         if (tc < deferredT)
         {

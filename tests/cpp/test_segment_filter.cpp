@@ -96,6 +96,16 @@ void checkSegment(vtkDataSet* ds, const mtree::CellSet& cells, const double p1[3
       ASSERT_NEAR(t, tc, 1e-9 * std::max(1.0, std::fabs(t))) << "cell " << c << " type " << int(cells.type(c));
     }
     const bool may = mtree::segmentMayHitCell(frame, cells, c, tMax);
+    // The locator's one-pass decision gives the same answers as the two calls.
+    double td = -1;
+    const mtree::CellVerdict verdict = mtree::decideCell(frame, cells, c, tMax, true, td);
+    ASSERT_EQ(verdict == mtree::CellVerdict::kMiss, !may) << "cell " << c;
+    if (may) {
+      ASSERT_EQ(verdict == mtree::CellVerdict::kCertain, certain) << "cell " << c;
+      if (certain) {
+        ASSERT_EQ(td, tc) << "cell " << c;
+      }
+    }
     if (certain && tc < tMax * (1 - 1e-9)) {
       ASSERT_TRUE(may) << "a certain hit before tMax was rejected: tet " << c;
     }

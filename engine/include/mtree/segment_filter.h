@@ -64,12 +64,59 @@ struct SegmentFrame {
 /// Whether the cell's type lies inside the convex hull of its points (VTK's linear types).
 inline bool cellInsideHullOfPoints(uint8_t type) { return type >= kVertex && type <= kPyramid; }
 
+/// segmentMayHitCell for a tetrahedron, from its four points: the Cyrus-Beck test alone (the
+/// segment clipped against the four face planes pushed out by r, empty on [0, min(tMax, 1)]).
+/// For a tetrahedron it decides everything the ray-frame hull test would (that test is the
+/// projection of the same hull onto two axes and the segment's, grown by the same r), so the
+/// points are read and the frame's products computed only once. 0: a miss, 1: VTK must decide,
+/// -1: the tetrahedron is (nearly) flat, the planes decide nothing (the ray-frame test may).
+inline int tetraMayHit(const SegmentFrame& f, const Vec3 v[4], double tMax) {
+  if (!f.valid) return 1;
+  const Vec3 lo = vmin(vmin(v[0], v[1]), vmin(v[2], v[3])), hi = vmax(vmax(v[0], v[1]), vmax(v[2], v[3]));
+  const double vmag = std::max({std::fabs(lo.x), std::fabs(lo.y), std::fabs(lo.z), std::fabs(hi.x), std::fabs(hi.y),
+                                std::fabs(hi.z)});
+  const Vec3 ext = hi - lo;
+  const double emax = std::max({ext.x, ext.y, ext.z});
+  const double delta = 1e-3 * emax + 64 * std::numeric_limits<double>::epsilon() * std::max(vmag, f.mag);
+  const double r = 2 * f.tol + delta;
+  if (!(std::isfinite(r))) return 1;
+  static constexpr int kFace[4][4] = {{0, 1, 3, 2}, {1, 2, 3, 0}, {2, 0, 3, 1}, {0, 2, 1, 3}};  // 3 on the face, then the opposite
+  double tLo = 0, tHi = std::min(tMax, 1.0);
+  if (!(tLo <= tHi)) return 0;
+  for (const auto& fv : kFace) {
+    const Vec3 o = v[fv[0]];
+    Vec3 nrm = cross(v[fv[1]] - o, v[fv[2]] - o);
+    const double nn = norm(nrm);
+    const double side = dot(nrm, v[fv[3]] - o);
+    // A flat (or nearly flat) tetrahedron has no reliable inside.
+    if (!(std::fabs(side) > 1e-9 * nn * emax)) return -1;
+    if (side > 0) nrm = nrm * -1.0;  // outward
+    const double A = dot(nrm, f.p1 - o) - r * nn;  // <= 0: p1 inside the pushed-out plane
+    const double B = dot(nrm, f.d);
+    if (B == 0) {
+      if (A > 0) return 0;
+      continue;
+    }
+    const double t = -A / B;
+    if (B > 0) tHi = std::min(tHi, t);
+    else tLo = std::max(tLo, t);
+    if (tLo > tHi) return 0;
+  }
+  return 1;
+}
+
 /// False only if vtkCell::IntersectWithLine(p1, p2, tol, t, ...) on cell c cannot return a hit
 /// with t <= tMax (see the header comment). True means "ask VTK".
 inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax) {
   if (!f.valid || !cellInsideHullOfPoints(cells.type(c))) return true;
   const int64_t n = cells.numCellPoints(c);
   if (n <= 0) return true;
+  if (cells.type(c) == kTetra && n == 4) {
+    const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
+    const int verdict = tetraMayHit(f, v, tMax);
+    if (verdict >= 0) return verdict != 0;
+    // Flat: the ray-frame test below may still prove a miss (its face planes ask VTK).
+  }
   double amin = std::numeric_limits<double>::infinity(), amax = -amin;
   double bmin = amin, bmax = amax, smin = amin, smax = amax;
   Vec3 lo(amin, amin, amin), hi(amax, amax, amax);
@@ -161,10 +208,17 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
 /// this computation and of VTK's. Returns false when not certain (VTK must decide) or when the
 /// segment misses: misses are the rejection test's business. On true, t is the hit's parameter
 /// (equal to VTK's up to round-off).
+inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t);
 inline bool tetraFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
   if (!f.valid || f.tol != 0 || cells.type(c) != kTetra || cells.numCellPoints(c) != 4) return false;
-  const Vec3 v0 = cells.cellPoint(c, 0), v1 = cells.cellPoint(c, 1), v2 = cells.cellPoint(c, 2),
-             v3 = cells.cellPoint(c, 3);
+  const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
+  return tetraCertainHit(f, v, t);
+}
+
+/// tetraFirstHitIfCertain from the tetrahedron's four points (VTK's order).
+inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
+  if (!f.valid || f.tol != 0) return false;
+  const Vec3 v0 = v[0], v1 = v[1], v2 = v[2], v3 = v[3];
   const Vec3 a = v1 - v0, b = v2 - v0, e = v3 - v0;
   const Vec3 be = cross(b, e);
   const double det = dot(a, be);  // 6 x signed volume
@@ -346,6 +400,22 @@ inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_
   const uint8_t type = cells.type(c);
   if (type == kTetra) return tetraFirstHitIfCertain(f, cells, c, t);
   return convexFirstHitIfCertain(f, cells, c, t);
+}
+
+/// What the ray queries ask of a candidate: segmentMayHitCell (kMiss: VTK cannot hit it at
+/// t <= tMax) and then firstHitIfCertain (kCertain, with t), the points of a tetrahedron read
+/// once for both. kAskVtk otherwise. The same answers as the two calls in turn.
+enum class CellVerdict { kMiss, kAskVtk, kCertain };
+inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax, bool wantCertain,
+                              double& t) {
+  if (f.valid && cells.type(c) == kTetra && cells.numCellPoints(c) == 4) {
+    const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
+    const int verdict = tetraMayHit(f, v, tMax);
+    if (verdict == 0) return CellVerdict::kMiss;
+    if (verdict > 0) return wantCertain && tetraCertainHit(f, v, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
+  }
+  if (!segmentMayHitCell(f, cells, c, tMax)) return CellVerdict::kMiss;
+  return wantCertain && firstHitIfCertain(f, cells, c, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
 }
 
 }  // namespace mtree
