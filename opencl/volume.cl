@@ -276,6 +276,16 @@ VR_DEFINE_MARCH(double, d)
 #define VR_SY 9
 #define VR_SZ 81
 #define VR_BRICK 729
+/* 8-bit bricks of grids of at most 4096 level-0 bricks are held in rows of y pairs
+ * (BlockSparseVolume::pairedRows, BRICK_BYTES8): byte 2 x + dy of row (y, z) at 18 y + 144 z
+ * holds voxel (x, y + dy, z), so the 4 corners of a cell in a z plane are 4 consecutive bytes. The
+ * rule depends on the dimensions only: VR_PAIRED(T, n, nb0, nb1) derives it as the host did. */
+#define VR_PSY 18
+#define VR_PSZ 144
+#define VR_PBRICK 1296
+#define VR_PAIRED_MAX_BRICKS 4096
+#define VR_PAIRED(T, n, nb0, nb1)                                                                                   \
+  (sizeof(T) == 1 && (long)(nb0) * (nb1) * (((n)[2] - 1 + VR_DIM - 1) >> VR_LOG2DIM) <= VR_PAIRED_MAX_BRICKS)
 
 /* x86's truncating conversions (cvttss2si/cvttsd2si), which the CPU marchers use: the integer
  * part, or INT_MIN when it does not fit (and for NaN). OpenCL's (int) leaves that undefined. */
@@ -288,28 +298,31 @@ inline int vr_trunc_d(double x) {
 
 /* The storage-typed helpers, once per voxel type T. */
 #define VR_DEFINE_APRON_HELPERS(T, SFX)                                                                             \
+  /* Entry of corner n (x fastest) of the cell whose corner 0 is at entry 0 (9^3 or paired rows). */               \
+  inline int vr_corner_##SFX(int n, int paired) {                                                                  \
+    return paired ? 2 * (n & 1) + ((n >> 1) & 1) + VR_PSZ * (n >> 2)                                                \
+                  : (n & 1) + VR_SY * ((n >> 1) & 1) + VR_SZ * (n >> 2);                                            \
+  }                                                                                                                \
+  /* Entry of corner 0 of local cell (lx, ly, lz) of a brick. */                                                   \
+  inline int vr_local_##SFX(int lx, int ly, int lz, int paired) {                                                  \
+    return paired ? 2 * lx + VR_PSY * ly + VR_PSZ * lz : lx + VR_SY * ly + VR_SZ * lz;                             \
+  }                                                                                                                \
   /* BlockSparseVolume::cellCorners: the stored corners plus the offset (float), 0 if absent. */                   \
   inline int vr_apron_cell_##SFX(__global const uint* bptr, __global const T* bricks, int nb0, int nb1,           \
-                                 float offset, int i, int j, int k, float c[8]) {                                  \
+                                 float offset, int i, int j, int k, float c[8], int paired) {                      \
     const uint b = bptr[((size_t)(k >> VR_LOG2DIM) * nb1 + (j >> VR_LOG2DIM)) * nb0 + (i >> VR_LOG2DIM)];          \
     if (b == MT_NULL) return 0;                                                                                    \
-    __global const T* p = bricks + (size_t)b * VR_BRICK + (i & (VR_DIM - 1)) + VR_SY * (j & (VR_DIM - 1)) +        \
-                          VR_SZ * (k & (VR_DIM - 1));                                                              \
+    __global const T* p = bricks + (size_t)b * (paired ? VR_PBRICK : VR_BRICK) +                                  \
+                          vr_local_##SFX(i & (VR_DIM - 1), j & (VR_DIM - 1), k & (VR_DIM - 1), paired);            \
     for (int n = 0; n < 8; ++n)                                                                                    \
-      c[n] = (float)p[(n & 1) + VR_SY * ((n >> 1) & 1) + VR_SZ * (n >> 2)] + offset;                               \
+      c[n] = (float)p[vr_corner_##SFX(n, paired)] + offset;                                                        \
     return 1;                                                                                                      \
   }                                                                                                                \
   /* The stored corners (no offset) of local cell (lx, ly, lz) of the brick at `base`. */                          \
-  inline void vr_apron_local_##SFX(__global const T* base, int lx, int ly, int lz, float c[8]) {                    \
-    __global const T* p = base + lx + VR_SY * ly + VR_SZ * lz;                                                     \
-    c[0] = (float)p[0];                                                                                            \
-    c[1] = (float)p[1];                                                                                            \
-    c[2] = (float)p[VR_SY];                                                                                        \
-    c[3] = (float)p[VR_SY + 1];                                                                                    \
-    c[4] = (float)p[VR_SZ];                                                                                        \
-    c[5] = (float)p[VR_SZ + 1];                                                                                    \
-    c[6] = (float)p[VR_SZ + VR_SY];                                                                                \
-    c[7] = (float)p[VR_SZ + VR_SY + 1];                                                                            \
+  inline void vr_apron_local_##SFX(__global const T* base, int lx, int ly, int lz, float c[8], int paired) {        \
+    __global const T* p = base + vr_local_##SFX(lx, ly, lz, paired);                                               \
+    for (int n = 0; n < 8; ++n)                                                                                    \
+      c[n] = (float)p[vr_corner_##SFX(n, paired)];                                                                 \
   }
 
 VR_DEFINE_APRON_HELPERS(uchar, u8)
@@ -363,6 +376,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
                                           int w, int h) {                                                          \
     VR_RAY_PROLOGUE;                                                                                               \
     const int nb0 = ip[14], nb1 = ip[15];                                                                          \
+    const int paired = VR_PAIRED(T, n, nb0, nb1);                                                                  \
     const float offset = (float)dp[29];                                                                            \
     const float Tmin = 1.f - (float)dp[22];                                                                        \
     const double kxe = floor((t1 - t0) / dt);                                                                      \
@@ -400,7 +414,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
         k = max(k + 1, kLast);                                                                                     \
         continue;                                                                                                  \
       }                                                                                                            \
-      __global const T* base = bricks + (size_t)bp * VR_BRICK;                                                     \
+      __global const T* base = bricks + (size_t)bp * (paired ? VR_PBRICK : VR_BRICK);                                  \
       __global const ulong* mask = masks + bidx * VR_DIM;                                                          \
       const int org[3] = {bi << VR_LOG2DIM, bj << VR_LOG2DIM, bk << VR_LOG2DIM};                                   \
       const int lim[3] = {min(VR_DIM - 1, n[0] - 2 - org[0]), min(VR_DIM - 1, n[1] - 2 - org[1]),                  \
@@ -422,7 +436,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
         if (outside) break; /* left the brick (or needs clamping) */                                               \
         if (!((mask[l[2]] >> (l[0] + VR_DIM * l[1])) & 1)) continue; /* invisible cell: adds exactly 0 */          \
         float cc[8];                                                                                               \
-        vr_apron_local_##SFX(base, l[0], l[1], l[2], cc);                                                          \
+        vr_apron_local_##SFX(base, l[0], l[1], l[2], cc, paired);                                                      \
         const float fx = fr[0], fy = fr[1], fz = fr[2];                                                            \
         const float z0 = cc[0] + fz * (cc[4] - cc[0]), z1 = cc[1] + fz * (cc[5] - cc[1]);                          \
         const float z2 = cc[2] + fz * (cc[6] - cc[2]), z3 = cc[3] + fz * (cc[7] - cc[3]);                          \
@@ -454,7 +468,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
         int c[3];                                                                                                  \
         for (int a = 0; a < 3; ++a) c[a] = vr_clamp_cell((double)(P0[a] + kf1 * S[a]), n[a], &f[a]);              \
         float cc[8];                                                                                               \
-        if (vr_apron_cell_##SFX(bptr, bricks, nb0, nb1, offset, c[0], c[1], c[2], cc)) {                           \
+        if (vr_apron_cell_##SFX(bptr, bricks, nb0, nb1, offset, c[0], c[1], c[2], cc, paired)) {                       \
           ++samples;                                                                                               \
           const float fx = (float)f[0], fy = (float)f[1], fz = (float)f[2];                                        \
           const float x00 = cc[0] + fx * (cc[1] - cc[0]), x10 = cc[2] + fx * (cc[3] - cc[2]);                      \
@@ -494,6 +508,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
                                           int w, int h) {                                                          \
     VR_RAY_PROLOGUE;                                                                                               \
     const int nb0 = ip[14], nb1 = ip[15];                                                                          \
+    const int paired = VR_PAIRED(T, n, nb0, nb1);                                                                  \
     const float offset = (float)dp[29];                                                                            \
     const double thr = (double)(float)dp[22];                                                                      \
     const double kxe = floor((t1 - t0) / dt);                                                                      \
@@ -525,7 +540,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
         k = kLast + 1;                                                                                             \
         continue;                                                                                                  \
       }                                                                                                            \
-      __global const T* base = bricks + (size_t)bp * VR_BRICK;                                                     \
+      __global const T* base = bricks + (size_t)bp * (paired ? VR_PBRICK : VR_BRICK);                                  \
       __global const ulong* mask = masks + bidx * VR_DIM;                                                          \
       const int ox = bi << VR_LOG2DIM, oy = bj << VR_LOG2DIM, oz = bk << VR_LOG2DIM;                               \
       const uint mx = (uint)min(VR_DIM - 1, n[0] - 2 - ox), my = (uint)min(VR_DIM - 1, n[1] - 2 - oy),             \
@@ -543,13 +558,13 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
           fy = mt_max(py - (double)iy, 0.0);                                                                       \
           fz = mt_max(pz - (double)iz, 0.0);                                                                       \
           if (!((mask[lz] >> (lx + VR_DIM * ly)) & 1)) continue;                                                   \
-          vr_apron_local_##SFX(base, lx, ly, lz, cc);                                                              \
+          vr_apron_local_##SFX(base, lx, ly, lz, cc, paired);                                                          \
           off = (double)offset;                                                                                    \
         } else {                                                                                                   \
           double g[3];                                                                                             \
           const int ci = vr_clamp_cell(px, n[0], &g[0]), cj = vr_clamp_cell(py, n[1], &g[1]),                      \
                     ck = vr_clamp_cell(pz, n[2], &g[2]);                                                           \
-          if (!vr_apron_cell_##SFX(bptr, bricks, nb0, nb1, offset, ci, cj, ck, cc)) continue;                      \
+          if (!vr_apron_cell_##SFX(bptr, bricks, nb0, nb1, offset, ci, cj, ck, cc, paired)) continue;                  \
           fx = g[0];                                                                                               \
           fy = g[1];                                                                                               \
           fz = g[2];                                                                                               \

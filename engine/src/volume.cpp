@@ -140,9 +140,9 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
     uint32_t count = 0;
     for (int64_t b = 0; b < nBricks; ++b)
       if (!opt.sparse || l0.occ[size_t(b)]) brickPtr_[size_t(b)] = count++;
-    const size_t total = size_t(count) * BRICK_VOLUME;
-    if (storage_ == VoxelStorage::UInt8) b8_.assign(total + BRICK_PAD, 0);
-    else b16_.assign(total, 0);
+    paired_ = storage_ == VoxelStorage::UInt8 && nBricks <= PAIRED_MAX_BRICKS;
+    if (storage_ == VoxelStorage::UInt8) b8_.assign(size_t(count) * (paired_ ? BRICK_BYTES8 : BRICK_VOLUME) + BRICK_PAD, 0);
+    else b16_.assign(size_t(count) * BRICK_VOLUME, 0);
     const float off = offset_;
 #pragma omp parallel for num_threads(threads) schedule(static)
     for (int64_t b = 0; b < nBricks; ++b) {
@@ -155,8 +155,17 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
           for (int i = 0; i < APRON; ++i) {
             const float v = at(std::min(o[0] + i, n[0] - 1), std::min(o[1] + j, n[1] - 1), std::min(o[2] + k, n[2] - 1));
             const size_t e = base + size_t(k) * APRON * APRON + size_t(j) * APRON + size_t(i);
-            if (storage_ == VoxelStorage::UInt8) b8_[e] = static_cast<uint8_t>(v - off);
-            else b16_[e] = static_cast<uint16_t>(v - off);
+            if (paired_) {
+              // Rows of y pairs: voxel row j is the first of pair row j and the second of j - 1.
+              const size_t pb = size_t(s) * BRICK_BYTES8;
+              const uint8_t u = static_cast<uint8_t>(v - off);
+              if (j < DIM) b8_[pb + size_t(pairOffset(i, j, k))] = u;
+              if (j > 0) b8_[pb + size_t(pairOffset(i, j - 1, k)) + 1] = u;
+            } else if (storage_ == VoxelStorage::UInt8) {
+              b8_[e] = static_cast<uint8_t>(v - off);
+            } else {
+              b16_[e] = static_cast<uint16_t>(v - off);
+            }
           }
     }
     stats_.bricksStored = count;
@@ -297,10 +306,34 @@ struct PendingRayList {
 /// corners (x fastest) of a cell of that brick as floats (offset not applied). false: the cell
 /// reads an absent block, so it is invisible (opacity 0).
 
+/// An 8-bit voxel of bricks held in rows of y pairs (BlockSparseVolume::pairedRows): its own type,
+/// so that the marchers pick that layout at compile time.
+struct Paired8 {
+  uint8_t v;
+};
+inline float voxelValue(uint8_t x) { return float(x); }
+inline float voxelValue(uint16_t x) { return float(x); }
+inline float voxelValue(Paired8 x) { return float(x.v); }
+
+/// Where the corners of a brick's local cell (lx, ly, lz) are: corner 0 at entry cell(l), corner n
+/// (x fastest, then y, then z) at cell(l) + corner[n]; BRICK entries a brick.
+template <typename T>
+struct ApronLayout {  // uint8_t, uint16_t: APRON^3 entries, x fastest
+  static constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY, BRICK = BlockSparseVolume::BRICK_VOLUME;
+  static constexpr int corner[8] = {0, 1, SY, SY + 1, SZ, SZ + 1, SZ + SY, SZ + SY + 1};
+  static int cell(int lx, int ly, int lz) { return lx + SY * ly + SZ * lz; }
+};
+template <>
+struct ApronLayout<Paired8> {  // rows of y pairs
+  static constexpr int SZ = BlockSparseVolume::PAIR_SZ, BRICK = BlockSparseVolume::BRICK_BYTES8;
+  static constexpr int corner[8] = {0, 2, 1, 3, SZ, SZ + 2, SZ + 1, SZ + 3};
+  static int cell(int lx, int ly, int lz) { return BlockSparseVolume::pairOffset(lx, ly, lz); }
+};
+
 /// UInt8/UInt16 apron bricks: every corner inside the brick, fixed offsets.
 template <typename T>
 struct ApronFetch {
-  static constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
+  using Layout = ApronLayout<T>;
   const uint32_t* ptr;
   const T* data;
   const uint64_t* masks;
@@ -313,21 +346,14 @@ struct ApronFetch {
     const size_t i = (size_t(bk) * nb1 + bj) * nb0 + bi;
     const uint32_t b = ptr[i];
     if (b == MT_NULL) return false;
-    base = data + size_t(b) * BlockSparseVolume::BRICK_VOLUME;
+    base = data + size_t(b) * Layout::BRICK;
     mask = masks + i * DIM;
     return true;
   }
   bool corners(int lx, int ly, int lz, float c[8]) const {
     if (!((mask[lz] >> (lx + DIM * ly)) & 1)) return false;  // invisible cell: opacity 0
-    const T* p = base + (lx + SY * ly + SZ * lz);
-    c[0] = float(p[0]);
-    c[1] = float(p[1]);
-    c[2] = float(p[SY]);
-    c[3] = float(p[SY + 1]);
-    c[4] = float(p[SZ]);
-    c[5] = float(p[SZ + 1]);
-    c[6] = float(p[SZ + SY]);
-    c[7] = float(p[SZ + SY + 1]);
+    const T* p = base + Layout::cell(lx, ly, lz);
+    for (int n = 0; n < 8; ++n) c[n] = voxelValue(p[Layout::corner[n]]);
     return true;
   }
 };
@@ -596,6 +622,17 @@ inline void apronCorners(const uint8_t* p, __m128& lo, __m128& hi) {
   lo = _mm_cvtepi32_ps(_mm_unpacklo_epi16(w, z));
   hi = _mm_cvtepi32_ps(_mm_unpackhi_epi16(w, z));
 }
+inline void apronCorners(const Paired8* q, __m128& lo, __m128& hi) {
+  const uint8_t* p = &q->v;
+  uint32_t a, b;  // bytes (x, y), (x, y + 1), (x + 1, y), (x + 1, y + 1) of planes z and z + 1
+  std::memcpy(&a, p, 4);
+  std::memcpy(&b, p + BlockSparseVolume::PAIR_SZ, 4);
+  const __m128i z = _mm_setzero_si128();
+  const __m128i w = _mm_unpacklo_epi8(_mm_unpacklo_epi32(_mm_cvtsi32_si128(int(a)), _mm_cvtsi32_si128(int(b))), z);
+  const __m128 l = _mm_cvtepi32_ps(_mm_unpacklo_epi16(w, z)), h = _mm_cvtepi32_ps(_mm_unpackhi_epi16(w, z));
+  lo = _mm_shuffle_ps(l, l, _MM_SHUFFLE(3, 1, 2, 0));  // (x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)
+  hi = _mm_shuffle_ps(h, h, _MM_SHUFFLE(3, 1, 2, 0));
+}
 inline void apronCorners(const uint16_t* p, __m128& lo, __m128& hi) {
   constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
   uint32_t a, b, c, d;
@@ -730,7 +767,6 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
   const float* const table = F.table;
   const float offset = F.offset;
   const int levels = F.vol->levelCount();
-  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
   int64_t k = 0;
   while (k <= kEnd) {
     int bo[3];
@@ -755,7 +791,7 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
       // An invisible cell (opacity 0 on its whole value range, see the header) adds exactly 0.
       if (!((fetch.mask[lz] >> (lx + DIM * ly)) & 1)) continue;
       __m128 c0, c1;
-      apronCorners(fetch.base + (lx + SY * ly + SZ * lz), c0, c1);
+      apronCorners(fetch.base + ApronFetch<T>::Layout::cell(lx, ly, lz), c0, c1);
       const __m128 fz = _mm_shuffle_ps(f, f, 0xAA), fy = _mm_shuffle_ps(f, f, 0x55);
       const __m128 zl = _mm_add_ps(c0, _mm_mul_ps(fz, _mm_sub_ps(c1, c0)));  // (x0y0, x1y0, x0y1, x1y1)
       const __m128 yl = _mm_add_ps(zl, _mm_mul_ps(fy, _mm_sub_ps(_mm_movehl_ps(zl, zl), zl)));  // (x0, x1)
@@ -798,21 +834,62 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
 // implies it): GCC would fuse the multiply-adds and the image would differ from the SSE2 one.
 #define MT_AVX2 __attribute__((target("avx2")))
 
-/// The corner pairs (v[off], v[off + 1]) of 8 cells of apron bricks, one 32-bit gather: each
-/// lane's first and second value. (8-bit: the gather reads 2 bytes past the pair; the brick
-/// array is padded for it, see BlockSparseVolume::BRICK_PAD.)
-MT_AVX2 inline void gatherPairs(const uint8_t* base, __m256i off, __m256 & first, __m256 & second) {
-  const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 1);
-  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, _mm256_set1_epi32(0xFF)));
+/// The 8 corners (x fastest, then y, then z) of 8 cells of apron bricks, corner 0 of lane j at
+/// entry off[j] of `base` (ApronLayout), as floats. uint8_t/uint16_t: one 32-bit gather per
+/// corner pair (x, x + 1) (8-bit: it reads 2 bytes past the pair; the brick array is padded for
+/// it, see BlockSparseVolume::BRICK_PAD); Paired8: one per z plane (its 4 corners are
+/// consecutive bytes).
+MT_AVX2 inline void gatherCorners(const uint8_t* base, __m256i off, __m256 c[8]) {
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
+  const int rows[4] = {0, SY, SZ, SZ + SY};
+  const __m256i m = _mm256_set1_epi32(0xFF);
   // Byte 1 of each 32-bit lane into byte 0, zeros above (one shuffle for a shift and a mask).
   const __m256i byte1 = _mm256_setr_epi8(1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1,
                                          1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1);
-  second = _mm256_cvtepi32_ps(_mm256_shuffle_epi8(w, byte1));
+  for (int r = 0; r < 4; ++r) {
+    const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base),
+                                             r ? _mm256_add_epi32(off, _mm256_set1_epi32(rows[r])) : off, 1);
+    c[2 * r] = _mm256_cvtepi32_ps(_mm256_and_si256(w, m));
+    c[2 * r + 1] = _mm256_cvtepi32_ps(_mm256_shuffle_epi8(w, byte1));
+  }
 }
-MT_AVX2 inline void gatherPairs(const uint16_t* base, __m256i off, __m256 & first, __m256 & second) {
-  const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 2);
-  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, _mm256_set1_epi32(0xFFFF)));
-  second = _mm256_cvtepi32_ps(_mm256_srli_epi32(w, 16));
+MT_AVX2 inline void gatherCorners(const uint16_t* base, __m256i off, __m256 c[8]) {
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
+  const int rows[4] = {0, SY, SZ, SZ + SY};
+  for (int r = 0; r < 4; ++r) {
+    const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base),
+                                             r ? _mm256_add_epi32(off, _mm256_set1_epi32(rows[r])) : off, 2);
+    c[2 * r] = _mm256_cvtepi32_ps(_mm256_and_si256(w, _mm256_set1_epi32(0xFFFF)));
+    c[2 * r + 1] = _mm256_cvtepi32_ps(_mm256_srli_epi32(w, 16));
+  }
+}
+MT_AVX2 inline void gatherCorners(const Paired8* base, __m256i off, __m256 c[8]) {
+  const __m256i m = _mm256_set1_epi32(0xFF);
+  const __m256i byte1 = _mm256_setr_epi8(1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1,
+                                         1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1);
+  const __m256i byte2 = _mm256_setr_epi8(2, -1, -1, -1, 6, -1, -1, -1, 10, -1, -1, -1, 14, -1, -1, -1,
+                                         2, -1, -1, -1, 6, -1, -1, -1, 10, -1, -1, -1, 14, -1, -1, -1);
+  for (int z = 0; z < 2; ++z) {
+    const __m256i w = _mm256_i32gather_epi32(
+        reinterpret_cast<const int*>(base), z ? _mm256_add_epi32(off, _mm256_set1_epi32(BlockSparseVolume::PAIR_SZ)) : off, 1);
+    c[4 * z + 0] = _mm256_cvtepi32_ps(_mm256_and_si256(w, m));         // (x, y)
+    c[4 * z + 2] = _mm256_cvtepi32_ps(_mm256_shuffle_epi8(w, byte1));  // (x, y + 1)
+    c[4 * z + 1] = _mm256_cvtepi32_ps(_mm256_shuffle_epi8(w, byte2));  // (x + 1, y)
+    c[4 * z + 3] = _mm256_cvtepi32_ps(_mm256_srli_epi32(w, 24));       // (x + 1, y + 1)
+  }
+}
+
+/// Entry of corner 0 of local cell (lx, ly, lz) of stored brick ptr, bit = lx + 8 ly + 64 lz
+/// (ApronLayout, 8 lanes). 9^3 entries: ptr 729 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz;
+/// Paired8: ptr BRICK_BYTES8 + 2 lx + 18 ly + 144 lz = ... + 2 (bit + ly + 8 lz).
+template <typename T>
+MT_AVX2 inline __m256i cornerEntry(const T*, __m256i ptr, __m256i bit, __m256i ly, __m256i lz) {
+  return _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(BlockSparseVolume::BRICK_VOLUME)),
+                          _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz))));
+}
+MT_AVX2 inline __m256i cornerEntry(const Paired8*, __m256i ptr, __m256i bit, __m256i ly, __m256i lz) {
+  return _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(BlockSparseVolume::BRICK_BYTES8)),
+                          _mm256_slli_epi32(_mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_slli_epi32(lz, 3))), 1));
 }
 
 /// The per-ray constants of marchApronAvx2's chunks (broadcast once per ray).
@@ -842,8 +919,7 @@ struct Avx2Chunk {
 template <typename T>
 MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R, float kf, int64_t left,
                                                               Avx2Chunk& out) {
-  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY, VOL = BlockSparseVolume::BRICK_VOLUME;
-  static_assert(SY == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
+  static_assert(BlockSparseVolume::APRON == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
   const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
   const __m256 kv = _mm256_add_ps(_mm256_set1_ps(kf), _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f));
   const __m256 px = _mm256_add_ps(R.P0x, _mm256_mul_ps(kv, R.Sx));
@@ -880,16 +956,11 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
   const __m256 fx = _mm256_max_ps(_mm256_sub_ps(px, _mm256_cvtepi32_ps(ix)), zero);
   const __m256 fy = _mm256_max_ps(_mm256_sub_ps(py, _mm256_cvtepi32_ps(iy)), zero);
   const __m256 fz = _mm256_max_ps(_mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz)), zero);
-  // Voxel of corner 0: brick * 9^3 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz; 0 in the
-  // lanes without a brick.
-  const __m256i off = _mm256_and_si256(
-      take, _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(VOL)),
-                             _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz)))));
-  __m256 c0, c1, c2, c3, c4, c5, c6, c7;  // corner dx + 2 dy + 4 dz
-  gatherPairs(R.data, off, c0, c1);
-  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SY)), c2, c3);
-  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SZ)), c4, c5);
-  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SZ + SY)), c6, c7);
+  // Entry of corner 0 (0 in the lanes without a brick), then the 8 corners.
+  const __m256i off = _mm256_and_si256(take, cornerEntry(R.data, ptr, bit, ly, lz));
+  __m256 c[8];  // corner dx + 2 dy + 4 dz
+  gatherCorners(R.data, off, c);
+  const __m256 c0 = c[0], c1 = c[1], c2 = c[2], c3 = c[3], c4 = c[4], c5 = c[5], c6 = c[6], c7 = c[7];
   const __m256 z0 = _mm256_add_ps(c0, _mm256_mul_ps(fz, _mm256_sub_ps(c4, c0)));
   const __m256 z1 = _mm256_add_ps(c1, _mm256_mul_ps(fz, _mm256_sub_ps(c5, c1)));
   const __m256 z2 = _mm256_add_ps(c2, _mm256_mul_ps(fz, _mm256_sub_ps(c6, c2)));
@@ -1440,9 +1511,16 @@ void dispatchStorage(const BlockSparseVolume& vol, bool skip, bool shade, const 
   const int nb0 = vol.levelDim(0, 0), nb1 = vol.levelDim(0, 1);
   switch (vol.storage()) {
     case VoxelStorage::UInt8:
-      dispatch<R>(skip, shade, F,
-                  ApronFetch<uint8_t>(vol.brickPointers().data(), vol.bricks8().data(), vol.cellMasks().data(), nb0, nb1),
-                  geo, cam, w, h, aspect, threads, img, rgba);
+      if (vol.pairedRows())
+        dispatch<R>(skip, shade, F,
+                    ApronFetch<Paired8>(vol.brickPointers().data(), reinterpret_cast<const Paired8*>(vol.bricks8().data()),
+                                        vol.cellMasks().data(), nb0, nb1),
+                    geo, cam, w, h, aspect, threads, img, rgba);
+      else
+        dispatch<R>(skip, shade, F,
+                    ApronFetch<uint8_t>(vol.brickPointers().data(), vol.bricks8().data(), vol.cellMasks().data(), nb0,
+                                        nb1),
+                    geo, cam, w, h, aspect, threads, img, rgba);
       break;
     case VoxelStorage::UInt16:
       dispatch<R>(skip, shade, F,
@@ -1551,9 +1629,9 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   const char* simd = std::getenv("MATRIXTREE_VOLUME_SIMD");
   const bool forceSse2 = simd && std::strcmp(simd, "sse2") == 0;
   const bool apron = vol.storage() != VoxelStorage::Float32;
-  // The AVX2 marcher indexes voxels (stored brick * 9^3 + offset) and mask words (level-0 brick
+  // The AVX2 marcher indexes voxels (stored brick * 9^3 or BRICK_BYTES8 + offset) and mask words (level-0 brick
   // * 16 + word) with 32-bit integers.
-  const bool indexable = uint64_t(vol.stats().bricksStored + 1) * BlockSparseVolume::BRICK_VOLUME < (uint64_t(1) << 31) &&
+  const bool indexable = uint64_t(vol.stats().bricksStored + 1) * BlockSparseVolume::BRICK_BYTES8 < (uint64_t(1) << 31) &&
                          uint64_t(vol.stats().bricks) * 2 * DIM < (uint64_t(1) << 31);
   F.setup4 = opt.vectorized && !forceSse2 && cpuHasAvx2();
   F.lanes = apron && !opt.doublePrecision && !opt.shade && indexable && opt.vectorized && !forceSse2 && cpuHasAvx2() ? 8 : 1;

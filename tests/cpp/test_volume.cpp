@@ -56,13 +56,13 @@ struct Dense {
 };
 
 /// Blobs (Gaussian bumps) in a zero background: most of the volume is empty space.
-Dense blobs(int nx, int ny, int nz, unsigned seed) {
+Dense blobs(int nx, int ny, int nz, unsigned seed, double radiusScale = 1) {
   Dense d{{nx, ny, nz}, {}};
   d.v.assign(size_t(nx) * ny * nz, 0.f);
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
   for (int b = 0; b < 6; ++b) {
-    const double cx = u(rng) * nx, cy = u(rng) * ny, cz = u(rng) * nz, r = 2 + 4 * u(rng);
+    const double cx = u(rng) * nx, cy = u(rng) * ny, cz = u(rng) * nz, r = (2 + 4 * u(rng)) * radiusScale;
     for (int k = 0; k < nz; ++k)
       for (int j = 0; j < ny; ++j)
         for (int i = 0; i < nx; ++i) {
@@ -528,9 +528,16 @@ std::vector<T> integerBlobs(const Dense& d, double lo, double scale) {
   return v;
 }
 
+/// The 8-bit layout renderVolume reads: rows of y pairs up to PAIRED_MAX_BRICKS level-0 bricks.
+bool pairedExpected(VoxelStorage s, const int n[3]) {
+  const int64_t bricks = int64_t((n[0] + 6) / 8) * ((n[1] + 6) / 8) * ((n[2] + 6) / 8);
+  return s == VoxelStorage::UInt8 && bricks <= BlockSparseVolume::PAIRED_MAX_BRICKS;
+}
+
+/// `large`: a grid of more than PAIRED_MAX_BRICKS bricks (8-bit: the x-fastest 9^3 layout).
 template <typename T>
-void expectCompactMatchesFloat(VoxelStorage expected, double lo, double scale) {
-  const Dense d = blobs(41, 35, 29, 13);
+void expectCompactMatchesFloat(VoxelStorage expected, double lo, double scale, bool large = false) {
+  const Dense d = large ? blobs(137, 129, 129, 13, 5.0) : blobs(41, 35, 29, 13);
   const std::vector<T> vi = integerBlobs<T>(d, lo, scale);
   Dense asFloat{{d.n[0], d.n[1], d.n[2]}, std::vector<float>(vi.begin(), vi.end())};
   const double hi = lo + 255 * scale;
@@ -542,6 +549,8 @@ void expectCompactMatchesFloat(VoxelStorage expected, double lo, double scale) {
   flt.build(vi.data(), d.n, tf, o);
   ASSERT_EQ(compact.storage(), expected);
   ASSERT_EQ(flt.storage(), VoxelStorage::Float32);
+  EXPECT_EQ(compact.pairedRows(), pairedExpected(expected, d.n));
+  EXPECT_EQ(compact.pairedRows(), expected == VoxelStorage::UInt8 && !large) << "the test wants both 8-bit layouts";
   EXPECT_EQ(compact.stats().blocksAllocated, flt.stats().blocksAllocated);
   EXPECT_EQ(compact.stats().blockBytes, flt.stats().blockBytes);
   EXPECT_LE(double(compact.stats().bytes), 1.10 * double(compact.stats().blockBytes));
@@ -578,7 +587,8 @@ void expectCompactMatchesFloat(VoxelStorage expected, double lo, double scale) {
   // float blocks, on a perspective view through the blobs.
   VolumeGeometry g;
   g.spacing[0] = 0.8, g.spacing[1] = 1.1, g.spacing[2] = 1.3;
-  const VolumeCamera cam = lookAt({-25, 50, -40}, {16, 19, 19}, 40, 36);
+  const VolumeCamera cam = large ? lookAt({-80, 160, -130}, {55, 70, 84}, 48, 40)
+                                 : lookAt({-25, 50, -40}, {16, 19, 19}, 40, 36);
   for (int variant = 0; variant < 4; ++variant) {
     VolumeRenderOptions opt;
     opt.sampleDistance = 0.45;
@@ -607,6 +617,9 @@ void expectCompactMatchesFloat(VoxelStorage expected, double lo, double scale) {
 }  // namespace
 
 TEST(CompactStorage, UInt8MatchesFloat) { expectCompactMatchesFloat<uint8_t>(VoxelStorage::UInt8, 0, 1); }
+TEST(CompactStorage, UInt8LargeGridMatchesFloat) {
+  expectCompactMatchesFloat<uint8_t>(VoxelStorage::UInt8, 0, 1, true);
+}
 TEST(CompactStorage, Int8MatchesFloat) { expectCompactMatchesFloat<int8_t>(VoxelStorage::UInt8, -128, 1); }
 TEST(CompactStorage, UInt16MatchesFloat) { expectCompactMatchesFloat<uint16_t>(VoxelStorage::UInt16, 1000, 200); }
 TEST(CompactStorage, Int16MatchesFloat) { expectCompactMatchesFloat<int16_t>(VoxelStorage::UInt16, -20000, 150); }

@@ -210,6 +210,34 @@ TEST(VolumeSimd, RealVolumesEqualSse2) {
   if (!avx2Here()) std::printf("[ note     ] no AVX2 here: both renders took the SSE2 marcher\n");
 }
 
+TEST(VolumeSimd, UInt8BothLayoutsEqualSse2) {
+  // 8-bit bricks are held in rows of y pairs up to PAIRED_MAX_BRICKS level-0 bricks (the synthetic
+  // volumes above) and x fastest beyond (this one: 18 x 17 x 17 bricks), each read by its own
+  // AVX2 gathers; both against the SSE2 marcher, which reads them by other code.
+  const int n[3] = {140, 131, 130};
+  const std::vector<uint8_t> v = noisyBlobs<uint8_t>(n, 255, 29);
+  const TransferTable tf = rampTable(0, 255, 0.35, 0.5, 1 << 16);
+  BlockSparseVolume vol;
+  vol.build(v.data(), n, tf);
+  ASSERT_EQ(vol.storage(), VoxelStorage::UInt8);
+  ASSERT_GT(vol.stats().bricks, uint32_t(BlockSparseVolume::PAIRED_MAX_BRICKS));
+  EXPECT_FALSE(vol.pairedRows());
+  const int m[3] = {37, 29, 23};
+  BlockSparseVolume small;
+  small.build(noisyBlobs<uint8_t>(m, 255, 17).data(), m, tf);
+  EXPECT_TRUE(small.pairedRows());
+  const VolumeCamera cams[] = {lookAt({-120, 180, -150}, {70, 65, 65}, 40, 32),
+                               lookAt({70, 65, 65}, {-5, 90, 20}, 24, 24, 90)};  // from inside
+  for (int c = 0; c < 2; ++c)
+    for (int variant = 0; variant < 2; ++variant) {
+      VolumeRenderOptions opt;
+      opt.sampleDistance = variant ? 0.37 : 0.5;
+      opt.emptySpaceSkipping = variant == 0;
+      expectSameAsSse2(vol, VolumeGeometry(), tf, cams[c], opt,
+                       "x-fastest 8-bit bricks, camera " + std::to_string(c) + " variant " + std::to_string(variant));
+    }
+}
+
 TEST(VolumeSimd, OnlyUnshadedFloatRaysOfApronBricksAreVectorized) {
   const int n[3] = {20, 18, 16};
   const std::vector<uint8_t> v = noisyBlobs<uint8_t>(n, 255, 3);

@@ -263,3 +263,32 @@ def test_filter_8bit_output_is_the_float_image_rounded():
     assert f.size == 37 * 23 * 4 and f.size % 16 != 0
     assert np.array_equal(u, expected)
     assert len(np.unique(u)) > 50  # many levels, not just 0 and 255
+
+
+def _opencl_platform_count() -> int:
+    import ctypes
+    import ctypes.util
+    try:
+        lib = ctypes.CDLL(ctypes.util.find_library("OpenCL") or "libOpenCL.so.1")
+    except OSError:
+        return 0
+    n = ctypes.c_uint(0)
+    return n.value if lib.clGetPlatformIDs(0, None, ctypes.byref(n)) == 0 else 0
+
+
+@pytest.mark.skipif(_opencl_platform_count() == 0, reason="no OpenCL platform")
+@pytest.mark.parametrize("name, paired", [("HeadMRVolume.mhd", True), ("embryo.slc", False)])
+def test_both_8bit_brick_layouts_render_alike_on_cpu_and_opencl(name, paired):
+    """8-bit bricks are held in rows of y pairs on grids of at most 4096 level-0 bricks
+    (HeadMRVolume: 6 x 8 x 6) and x fastest beyond (embryo: 32^3); the OpenCL kernel derives the
+    layout from the dimensions as the host does, and gives the CPU's image and samples."""
+    im = matrixtree.read_volume(os.path.join(VOLUMES, name))
+    nb = [(d - 1 + 7) // 8 for d in im.GetDimensions()]
+    assert (nb[0] * nb[1] * nb[2] <= 4096) == paired
+    cam = matrixtree.frame_camera(im, azimuth=40, elevation=25)
+    a, sa = matrixtree.render_volume(im, size=(64, 56), camera=cam, return_stats=True)
+    b, sb = matrixtree.render_volume(im, size=(64, 56), camera=cam, backend="opencl", return_stats=True)
+    assert sa["storage"] == sb["storage"] == "uint8"
+    assert a[..., 3].mean() > 0.02
+    assert np.abs(a - b).max() <= 1e-5, np.abs(a - b).max()
+    assert (sa["samples"], sa["skips"]) == (sb["samples"], sb["skips"])

@@ -8,6 +8,8 @@
 //                      cells stored as (DIM+1)^3 voxels in the input's width, i.e. with a 1-voxel
 //                      apron towards +x/+y/+z, so all 8 corners of every cell of a brick are in
 //                      the brick (no neighbour lookup per sample); signed input is offset.
+//                      8-bit bricks of small grids are held in rows of y pairs (BRICK_BYTES8): a
+//                      cell's 4 corners in a z plane are 4 consecutive bytes.
 //                      Only blocks that a visible sample can read are allocated ("model only
 //                      what a scene requires"): a cell (8 voxels) is visible when the opacity
 //                      function is non-zero somewhere on [min, max] of its corners; every voxel
@@ -137,10 +139,23 @@ class BlockSparseVolume {
   VoxelStorage storage() const { return storage_; }
   /// The Float32 layout's matrix (a 1x1x1 placeholder when the storage is UInt8/UInt16).
   const BlockSparseMatrix<float>& voxels() const { return vox_; }
-  /// UInt8/UInt16 layout: brick pointers (level-0 order, MT_NULL = absent), the bricks of
-  /// APRON^3 entries, and the offset added to a stored value (signed input).
+  /// UInt8/UInt16 layout: brick pointers (level-0 order, MT_NULL = absent), the bricks, and the
+  /// offset added to a stored value (signed input). A brick holds APRON^3 voxels (its 8^3 cells'
+  /// corners) as APRON^3 entries, x fastest, then y, then z (BRICK_VOLUME); except 8-bit bricks
+  /// of a grid of at most PAIRED_MAX_BRICKS level-0 bricks (pairedRows()), held in rows of y
+  /// pairs (BRICK_BYTES8 bytes): for z = 0..8 and y = 0..7, the 9 voxels (x, y) and (x, y + 1)
+  /// interleaved, byte 2 x + dy of row (y, z) at pairOffset(0, y, z). The 4 corners of a cell in
+  /// a z plane are then 4 consecutive bytes, (x, y), (x, y + 1), (x + 1, y), (x + 1, y + 1), read
+  /// at once (rows y = 1..7 are held twice: 1296 bytes a brick instead of 729, so only where the
+  /// bricks stay small enough to be cached; the rule depends on the dimensions only, so the
+  /// OpenCL kernel derives it too).
   static constexpr int APRON = DIM + 1;
   static constexpr int BRICK_VOLUME = APRON * APRON * APRON;
+  static constexpr int PAIR_SY = 2 * APRON, PAIR_SZ = PAIR_SY * DIM;
+  static constexpr int BRICK_BYTES8 = PAIR_SZ * APRON;
+  static constexpr int PAIRED_MAX_BRICKS = 4096;
+  static constexpr int pairOffset(int x, int y, int z) { return 2 * x + PAIR_SY * y + PAIR_SZ * z; }
+  bool pairedRows() const { return paired_; }
   /// bricks8() holds BRICK_PAD zero bytes after its last brick: the AVX2 marcher reads a cell's
   /// corner pair (2 bytes) with a 4-byte gather.
   static constexpr int BRICK_PAD = 4;
@@ -162,8 +177,14 @@ class BlockSparseVolume {
       const uint32_t b = brickPtr_[(size_t(k >> LOG2DIM) * levels_[0].n[1] + (j >> LOG2DIM)) * levels_[0].n[0] +
                                    (i >> LOG2DIM)];
       if (b == MT_NULL) return false;
-      const size_t o = size_t(b) * BRICK_VOLUME + (i & (DIM - 1)) + APRON * (j & (DIM - 1)) +
-                       APRON * APRON * (k & (DIM - 1));
+      const int lx = i & (DIM - 1), ly = j & (DIM - 1), lz = k & (DIM - 1);
+      if (paired_) {
+        const size_t o = size_t(b) * BRICK_BYTES8 + pairOffset(lx, ly, lz);
+        for (int n = 0; n < 8; ++n)
+          c[n] = float(b8_[o + 2 * (n & 1) + ((n >> 1) & 1) + PAIR_SZ * (n >> 2)]) + offset_;
+        return true;
+      }
+      const size_t o = size_t(b) * BRICK_VOLUME + lx + APRON * ly + APRON * APRON * lz;
       for (int n = 0; n < 8; ++n) {
         const size_t e = o + (n & 1) + APRON * ((n >> 1) & 1) + APRON * APRON * (n >> 2);
         c[n] = (storage_ == VoxelStorage::UInt8 ? float(b8_[e]) : float(b16_[e])) + offset_;
@@ -215,6 +236,7 @@ class BlockSparseVolume {
   BlockSparseMatrix<float> vox_;
   int n_[3] = {1, 1, 1};
   VoxelStorage storage_ = VoxelStorage::Float32;
+  bool paired_ = false;  // UInt8 bricks in rows of y pairs (see BRICK_BYTES8)
   float offset_ = 0;
   std::vector<uint32_t> brickPtr_;
   std::vector<uint8_t> b8_;
