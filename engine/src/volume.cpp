@@ -689,9 +689,9 @@ template <typename T, bool Skip>
 inline bool apronEnter(const Frame& F, const ApronRay& ray, int levels, int64_t kEnd, ApronFetch<T>& fetch,
                        int64_t& k, uint64_t& skips, int o[3]) {
   const BlockSparseVolume& vol = *F.vol;
-  alignas(16) int cell[4];
-  _mm_store_si128(reinterpret_cast<__m128i*>(cell), ray.cells(ray.at(float(k))));
-  const int bi = cell[0] >> LOG2DIM, bj = cell[1] >> LOG2DIM, bk = cell[2] >> LOG2DIM;
+  const __m128i cellv = _mm_srai_epi32(ray.cells(ray.at(float(k))), LOG2DIM);
+  const int bi = _mm_cvtsi128_si32(cellv), bj = _mm_cvtsi128_si32(_mm_shuffle_epi32(cellv, 0x55)),
+            bk = _mm_cvtsi128_si32(_mm_shuffle_epi32(cellv, 0xAA));
   int empty = Skip ? coarsestInvisible(vol, levels, bi, bj, bk) : -1;
   if (empty < 0 && !fetch.enter(bi, bj, bk)) empty = 0;  // visible, but no brick stored
   if (empty < 0) {
@@ -894,12 +894,12 @@ MT_AVX2 inline __m256i cornerEntry(const Paired8*, __m256i ptr, __m256i bit, __m
 
 /// The per-ray constants of marchApronAvx2's chunks (broadcast once per ray).
 template <typename T>
-struct Avx2Ray {
-  __m256 P0x, P0y, P0z, Sx, Sy, Sz;
-  __m256i mx, my, mz;  // n - 2 per axis: cells that need no clamping are 0..n-2
-  __m256i nb0, nb1;    // level-0 bricks along x, y
-  __m256 tlo, tscale, offset;
-  __m256i tlast, zeroEntry;
+struct Avx2Ray {  // scalars, broadcast where used (a load each, like a vector constant's)
+  float P0x, P0y, P0z, Sx, Sy, Sz;
+  int mx, my, mz;  // n - 2 per axis: cells that need no clamping are 0..n-2
+  int nb0, nb1;    // level-0 bricks along x, y
+  float tlo, tscale, offset;
+  int tlast, zeroEntry;
   const int* bricks;  // F.runBricks: MT_NULL (-1) where the walk takes over
   const int* words;   // per level-0 brick 16 mask words: bit x + 8 y + 64 z
   const T* data;
@@ -921,22 +921,24 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
                                                               Avx2Chunk& out) {
   static_assert(BlockSparseVolume::APRON == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
   const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
+  const __m256 P0x = _mm256_set1_ps(R.P0x), P0y = _mm256_set1_ps(R.P0y), P0z = _mm256_set1_ps(R.P0z);
+  const __m256 Sx = _mm256_set1_ps(R.Sx), Sy = _mm256_set1_ps(R.Sy), Sz = _mm256_set1_ps(R.Sz);
+  const __m256i mx = _mm256_set1_epi32(R.mx), my = _mm256_set1_epi32(R.my), mz = _mm256_set1_epi32(R.mz);
   const __m256 kv = _mm256_add_ps(_mm256_set1_ps(kf), _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f));
-  const __m256 px = _mm256_add_ps(R.P0x, _mm256_mul_ps(kv, R.Sx));
-  const __m256 py = _mm256_add_ps(R.P0y, _mm256_mul_ps(kv, R.Sy));
-  const __m256 pz = _mm256_add_ps(R.P0z, _mm256_mul_ps(kv, R.Sz));
+  const __m256 px = _mm256_add_ps(P0x, _mm256_mul_ps(kv, Sx));
+  const __m256 py = _mm256_add_ps(P0y, _mm256_mul_ps(kv, Sy));
+  const __m256 pz = _mm256_add_ps(P0z, _mm256_mul_ps(kv, Sz));
   const __m256i ix = _mm256_cvttps_epi32(px), iy = _mm256_cvttps_epi32(py), iz = _mm256_cvttps_epi32(pz);
   // Cells that need no clamping: 0 <= i <= n - 2 per axis, i.e. i <= n - 2 as unsigned.
   const __m256i inside = _mm256_and_si256(
-      _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_min_epu32(ix, R.mx), ix), _mm256_cmpeq_epi32(_mm256_min_epu32(iy, R.my), iy)),
-      _mm256_cmpeq_epi32(_mm256_min_epu32(iz, R.mz), iz));
+      _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_min_epu32(ix, mx), ix), _mm256_cmpeq_epi32(_mm256_min_epu32(iy, my), iy)),
+      _mm256_cmpeq_epi32(_mm256_min_epu32(iz, mz), iz));
   // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
+  const __m256i bz = _mm256_srli_epi32(iz, LOG2DIM), by = _mm256_srli_epi32(iy, LOG2DIM), bx = _mm256_srli_epi32(ix, LOG2DIM);
   const __m256i b = _mm256_and_si256(
-      inside, _mm256_add_epi32(
-                  _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), R.nb1),
-                                                      _mm256_srli_epi32(iy, LOG2DIM)),
-                                     R.nb0),
-                  _mm256_srli_epi32(ix, LOG2DIM)));
+      inside, _mm256_add_epi32(_mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(bz, _mm256_set1_epi32(R.nb1)), by),
+                                                  _mm256_set1_epi32(R.nb0)),
+                               bx));
   const __m256i ptr = _mm256_i32gather_epi32(R.bricks, b, 4);
   // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
   // of the masks, issued without waiting for the brick pointers; shifted into the sign bit.
@@ -967,13 +969,14 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
   const __m256 z3 = _mm256_add_ps(c3, _mm256_mul_ps(fz, _mm256_sub_ps(c7, c3)));
   const __m256 y0 = _mm256_add_ps(z0, _mm256_mul_ps(fy, _mm256_sub_ps(z2, z0)));
   const __m256 y1 = _mm256_add_ps(z1, _mm256_mul_ps(fy, _mm256_sub_ps(z3, z1)));
-  const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), R.offset);
+  const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), _mm256_set1_ps(R.offset));
   const __m256i raw = _mm256_cvttps_epi32(
-      _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, R.tlo), R.tscale), _mm256_set1_ps(0.5f)));
+      _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, _mm256_set1_ps(R.tlo)), _mm256_set1_ps(R.tscale)), _mm256_set1_ps(0.5f)));
   // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
   // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
-  const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), R.tlast), 2);
-  out.idx = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(R.zeroEntry), _mm256_castsi256_ps(e4), vbit));
+  const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), _mm256_set1_epi32(R.tlast)), 2);
+  const __m256 zeroEntry = _mm256_castsi256_ps(_mm256_set1_epi32(R.zeroEntry));
+  out.idx = _mm256_castps_si256(_mm256_blendv_ps(zeroEntry, _mm256_castsi256_ps(e4), vbit));
 }
 
 /// One ray of marchApronAvx2 as a resumable state: start() sets it up, each step() does one
@@ -1006,13 +1009,13 @@ struct Avx2RayMarch {
     chunk = false;
     Tmin = 1.f - Fr.threshold;
     ray.set(Fr, o, d, t0);
-    R.P0x = _mm256_set1_ps(ray.P0s[0]), R.P0y = _mm256_set1_ps(ray.P0s[1]), R.P0z = _mm256_set1_ps(ray.P0s[2]);
-    R.Sx = _mm256_set1_ps(ray.Ss[0]), R.Sy = _mm256_set1_ps(ray.Ss[1]), R.Sz = _mm256_set1_ps(ray.Ss[2]);
-    R.mx = _mm256_set1_epi32(Fr.n[0] - 2), R.my = _mm256_set1_epi32(Fr.n[1] - 2), R.mz = _mm256_set1_epi32(Fr.n[2] - 2);
-    R.nb0 = _mm256_set1_epi32(Fr.nb[0]), R.nb1 = _mm256_set1_epi32(Fr.nb[1]);
-    R.tlo = _mm256_set1_ps(Fr.tlo), R.tscale = _mm256_set1_ps(Fr.tscale), R.offset = _mm256_set1_ps(Fr.offset);
-    R.tlast = _mm256_set1_epi32(Fr.tlast);
-    R.zeroEntry = _mm256_set1_epi32(4 * (Fr.tlast + 1));
+    R.P0x = ray.P0s[0], R.P0y = ray.P0s[1], R.P0z = ray.P0s[2];
+    R.Sx = ray.Ss[0], R.Sy = ray.Ss[1], R.Sz = ray.Ss[2];
+    R.mx = Fr.n[0] - 2, R.my = Fr.n[1] - 2, R.mz = Fr.n[2] - 2;
+    R.nb0 = Fr.nb[0], R.nb1 = Fr.nb[1];
+    R.tlo = Fr.tlo, R.tscale = Fr.tscale, R.offset = Fr.offset;
+    R.tlast = Fr.tlast;
+    R.zeroEntry = 4 * (Fr.tlast + 1);
     R.bricks = reinterpret_cast<const int*>(Fr.runBricks);
     R.words = reinterpret_cast<const int*>(fetch.masks);
     R.data = fetch.data;
