@@ -839,7 +839,7 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
 /// corner pair (x, x + 1) (8-bit: it reads 2 bytes past the pair; the brick array is padded for
 /// it, see BlockSparseVolume::BRICK_PAD); Paired8: one per z plane (its 4 corners are
 /// consecutive bytes).
-MT_AVX2 inline void gatherCorners(const uint8_t* base, __m256i off, __m256 c[8]) {
+MT_AVX2 __attribute__((always_inline)) inline void gatherCorners(const uint8_t* base, __m256i off, __m256 c[8]) {
   constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
   const int rows[4] = {0, SY, SZ, SZ + SY};
   const __m256i m = _mm256_set1_epi32(0xFF);
@@ -853,7 +853,7 @@ MT_AVX2 inline void gatherCorners(const uint8_t* base, __m256i off, __m256 c[8])
     c[2 * r + 1] = _mm256_cvtepi32_ps(_mm256_shuffle_epi8(w, byte1));
   }
 }
-MT_AVX2 inline void gatherCorners(const uint16_t* base, __m256i off, __m256 c[8]) {
+MT_AVX2 __attribute__((always_inline)) inline void gatherCorners(const uint16_t* base, __m256i off, __m256 c[8]) {
   constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY;
   const int rows[4] = {0, SY, SZ, SZ + SY};
   for (int r = 0; r < 4; ++r) {
@@ -863,7 +863,7 @@ MT_AVX2 inline void gatherCorners(const uint16_t* base, __m256i off, __m256 c[8]
     c[2 * r + 1] = _mm256_cvtepi32_ps(_mm256_srli_epi32(w, 16));
   }
 }
-MT_AVX2 inline void gatherCorners(const Paired8* base, __m256i off, __m256 c[8]) {
+MT_AVX2 __attribute__((always_inline)) inline void gatherCorners(const Paired8* base, __m256i off, __m256 c[8]) {
   const __m256i m = _mm256_set1_epi32(0xFF);
   const __m256i byte1 = _mm256_setr_epi8(1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1,
                                          1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1);
@@ -883,11 +883,13 @@ MT_AVX2 inline void gatherCorners(const Paired8* base, __m256i off, __m256 c[8])
 /// (ApronLayout, 8 lanes). 9^3 entries: ptr 729 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz;
 /// Paired8: ptr BRICK_BYTES8 + 2 lx + 18 ly + 144 lz = ... + 2 (bit + ly + 8 lz).
 template <typename T>
-MT_AVX2 inline __m256i cornerEntry(const T*, __m256i ptr, __m256i bit, __m256i ly, __m256i lz) {
+MT_AVX2 __attribute__((always_inline)) inline __m256i cornerEntry(const T*, __m256i ptr, __m256i bit, __m256i ly,
+                                                                 __m256i lz) {
   return _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(BlockSparseVolume::BRICK_VOLUME)),
                           _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz))));
 }
-MT_AVX2 inline __m256i cornerEntry(const Paired8*, __m256i ptr, __m256i bit, __m256i ly, __m256i lz) {
+MT_AVX2 __attribute__((always_inline)) inline __m256i cornerEntry(const Paired8*, __m256i ptr, __m256i bit, __m256i ly,
+                                                                 __m256i lz) {
   return _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(BlockSparseVolume::BRICK_BYTES8)),
                           _mm256_slli_epi32(_mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_slli_epi32(lz, 3))), 1));
 }
