@@ -110,7 +110,7 @@ def main() -> int:
         r["bytes_ratio_vs_static"] = r["bytes"] / s["bytes"] if r["bytes"] > 0 and s["bytes"] > 0 else -1
         r["machine"] = machine()
     cols = ["grid", "cells", "locator", "backend", "device", "build_ms", "bytes", "findcell_pts_per_s_1thread",
-            "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "rays_per_cpu_s", "disagreements",
+            "findcell_pts_per_cpu_s_1thread", "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "rays_per_cpu_s", "disagreements",
             "differs_from_cpu", "findcell_speedup_vs_static", "findcell_cpu_speedup_vs_static", "rays_speedup_vs_static",
             "rays_cpu_speedup_vs_static",
             "build_ratio_vs_static", "bytes_ratio_vs_static"]
