@@ -321,7 +321,9 @@ def write_docs(md_path: str, rows: list, pictures: list, args, cmd: str) -> None
                 "`bytes` <= 1.10 x this). `bytes`: everything held: for `float32` those blocks plus the "
                 "pointer matrix, per-brick value ranges and matrix-tree levels; for `uint8`/`uint16` "
                 "(8/16-bit input, or float input holding only integers: lossless) the visible bricks of "
-                "8^3 cells as 9^3 voxels (a 1-voxel apron) in that width, their pointers and 512-bit visible-cell masks, the ranges "
+                "8^3 cells as 9^3 voxels (a 1-voxel apron) in that width (8-bit bricks of grids of at most "
+                "4096 bricks in rows of y pairs, 1296 bytes a brick, so that a cell's 4 corners in a z plane "
+                "are 4 consecutive bytes), their pointers and 512-bit visible-cell masks, the ranges "
                 "and the levels. `dense_bytes`: all voxels as float.\n\n")
         f.write(markdown(mem, mcols) + "\n\n")
         f.write("## Speed/accuracy curve (ours)\n\nSample distance in units of the smallest spacing.\n\n")
