@@ -800,12 +800,13 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   const LeafSegmentFilter leafFilter(in, o, d, tol);
   vtkIdType filled = -1; // the cell `cell` holds
   // Cells whose hit is certain from the engine's copy (firstHitIfCertain, tol 0: tetrahedra, and
-  // hexahedra, wedges and pyramids with planar faces) are not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
-  // the end, for the exact t, x and pcoords. Should VTK not confirm it (it never did in the
-  // tests), the query is run again with every cell going to VTK.
+  // hexahedra, wedges and pyramids with planar faces) are not handed to VTK one by one: the
+  // first of them is kept, and VTK evaluates only that one at the end, for the exact t, x and
+  // pcoords. Should VTK not confirm it (it never did in the tests), the query is run again with
+  // every cell going to VTK.
   for (int pass = 0; pass < 2; ++pass)
   {
-    const bool deferTets = pass == 0 && tol == 0.0;
+    const bool deferCertain = pass == 0 && tol == 0.0;
     double deferredT = VTK_DOUBLE_MAX;
     vtkIdType deferredId = -1;
     best = VTK_DOUBLE_MAX;
@@ -842,7 +843,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       // (or hit only beyond the best t so far) without VTK (segment_filter.h).
       double tc;
       const mtree::CellVerdict verdict =
-        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferTets, tc);
+        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc);
       if (verdict == mtree::CellVerdict::kMiss)
       {
         return;
