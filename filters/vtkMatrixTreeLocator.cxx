@@ -151,7 +151,8 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
 class ByteBoxTest
 {
 public:
-  ByteBoxTest(const uint8_t qmax[3], const uint8_t qmin[3])
+  // n: how many boxes will be tested; the eight-at-a-time path is set up only when it runs.
+  ByteBoxTest(const uint8_t qmax[3], const uint8_t qmin[3], uint32_t n)
   {
     for (int a = 0; a < 3; ++a)
     {
@@ -159,6 +160,11 @@ public:
       this->Min[a] = qmin[a];
     }
 #if defined(__SSE2__)
+    this->Simd = n >= 8;
+    if (!this->Simd)
+    {
+      return;
+    }
     // Eight boxes are 48 bytes, three 16-byte loads. A byte at offset p is field p % 6 of box
     // p / 6: a lower bound (even field) passes when it is <= qmax, an upper bound (odd) when it
     // is >= qmin, i.e. when its complement is <= 255 - qmin. So the upper bounds are
@@ -186,7 +192,7 @@ public:
   {
     int n = 0;
 #if defined(__SSE2__)
-    for (; k + 8 <= stop; k += 8)
+    for (; this->Simd && k + 8 <= stop; k += 8)
     {
       const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
       uint64_t m = 0;
@@ -218,6 +224,7 @@ public:
 private:
   uint8_t Max[3], Min[3];
 #if defined(__SSE2__)
+  bool Simd = false;
   __m128i Flip[3], Thr[3];
 #endif
 };
@@ -250,7 +257,7 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     qf[a] = static_cast<uint8_t>(static_cast<int>(q[a]));
     qc[a] = static_cast<uint8_t>(static_cast<int>(q[a]) + (static_cast<int>(q[a]) < q[a] ? 1 : 0));
   }
-  const ByteBoxTest boxTest(qf, qc);
+  const ByteBoxTest boxTest(qf, qc, r.end - k);
   double closest[3], dist2;
   int subId = 0;
   // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
@@ -434,7 +441,7 @@ public:
       qmin[a] = static_cast<uint8_t>(lo > 0 ? (lo < 255 ? std::floor(lo) : 255) : 0);
       qmax[a] = static_cast<uint8_t>(hi < 255 ? (hi > 0 ? std::ceil(hi) : 0) : 255);
     }
-    const ByteBoxTest boxTest(qmax, qmin);
+    const ByteBoxTest boxTest(qmax, qmin, count);
     constexpr uint32_t kChunk = 64;
     uint32_t idx[kChunk];
     int n = 0;
