@@ -1416,10 +1416,17 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   constexpr int TILE = 8;
   static_assert(TILE * TILE <= PendingRayList::CAPACITY, "a tile's rays must fit the queue");
   const int tx = (w + TILE - 1) / TILE, ty = (h + TILE - 1) / TILE;
+  constexpr int GROUP = 4;
+  const int gx = (tx + GROUP - 1) / GROUP, gy = (ty + GROUP - 1) / GROUP;
   uint64_t sTotal = 0, kTotal = 0, rTotal = 0;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : sTotal, kTotal, rTotal)
-  for (int tile = 0; tile < tx * ty; ++tile) {
-    const int x0 = (tile % tx) * TILE, y0 = (tile / tx) * TILE;
+  for (int tile = 0; tile < gx * gy * GROUP * GROUP; ++tile) {
+    // Tiles in groups of GROUP x GROUP (32 x 32 pixels), the groups row by row: consecutive tiles'
+    // rays cross the same bricks, which then stay cached (avg152T1 -2.6%, embryo -1.6%).
+    const int group = tile / (GROUP * GROUP), in = tile % (GROUP * GROUP);
+    const int tix = (group % gx) * GROUP + in % GROUP, tiy = (group / gx) * GROUP + in / GROUP;
+    if (tix >= tx || tiy >= ty) continue;
+    const int x0 = tix * TILE, y0 = tiy * TILE;
     const int x1 = std::min(w, x0 + TILE), y1 = std::min(h, y0 + TILE);
     RaySetupFrame S = S0;
     PendingRayList pending;  // this tile's rays for marchApronAvx2Pair (at most TILE^2 = 64)

@@ -22,7 +22,7 @@
 //   renderVolume       ray marching with trilinear interpolation, front-to-back compositing with
 //                      opacity corrected for the step length (premultiplied table, once per frame),
 //                      early ray termination, optional gradient shading, hierarchical empty-space
-//                      skipping, OpenMP over 8x8-pixel tiles. A ray is walked brick by brick: on
+//                      skipping, OpenMP over 8x8-pixel tiles (in groups of 4x4). A ray is walked brick by brick: on
 //                      entry the brick's storage is resolved once, then samples inside it need no
 //                      clamping, no bounds checks and no pointer-matrix reads.
 //
