@@ -382,8 +382,30 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
                              TraversalStats* st) const {
   if (empty_ || !isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return;
   if (d.x == 0 && d.y == 0 && d.z == 0) return;
+  // Per axis: the reciprocal direction (no division per step) and which face the ray leaves by.
+  // An axis whose reciprocal is not finite (d = 0, or subnormal) does not move.
+  double inv[3];
+  int up[3];
+  bool moves[3];
+  for (int a = 0; a < 3; ++a) {
+    inv[a] = d[a] != 0 ? 1.0 / d[a] : 0.0;
+    moves[a] = std::fabs(inv[a]) < std::numeric_limits<double>::infinity() && d[a] != 0;
+    if (!moves[a]) inv[a] = 0.0;
+    up[a] = d[a] > 0 ? 1 : 0;
+  }
+  // The root box's slab test with those reciprocals, without branches on the slab order: many
+  // rays of a frame miss the root box, and this is all they cost.
   double t0 = tmin, t1 = tmax;
-  if (!rayBox(o, d, root_, t0, t1)) return;
+  for (int a = 0; a < 3; ++a) {
+    if (!moves[a]) {
+      if (o[a] < root_.lo[a] || o[a] > root_.hi[a]) return;
+      continue;
+    }
+    const double tn = (root_.lo[a] - o[a]) * inv[a], tf = (root_.hi[a] - o[a]) * inv[a];
+    t0 = std::max(t0, std::min(tn, tf));
+    t1 = std::min(t1, std::max(tn, tf));
+  }
+  if (!(t0 <= t1)) return;
   const int H = height_;
   const Vec3 ol = o - root_.lo;  // local coordinates: the root box starts at 0
   int L[3];
@@ -394,16 +416,6 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
   }
   NodeRef n = locate(L, 0, H + 1, st);
   double tEnter = t0;
-  // Per axis: the reciprocal direction (no division per step) and which face the ray leaves by.
-  double inv[3];
-  int up[3];
-  bool moves[3];
-  for (int a = 0; a < 3; ++a) {
-    moves[a] = d[a] != 0;
-    inv[a] = moves[a] ? 1.0 / d[a] : 0.0;
-    if (!(std::fabs(inv[a]) < std::numeric_limits<double>::infinity())) moves[a] = false, inv[a] = 0.0;
-    up[a] = d[a] > 0 ? 1 : 0;
-  }
   // +inf on the axes the ray does not move along, so every axis has an exit plane.
   double never[3];
   for (int a = 0; a < 3; ++a) never[a] = moves[a] ? 0.0 : std::numeric_limits<double>::infinity();
