@@ -10,7 +10,8 @@ point would measure Python, not the locators).
 With no --grid it runs every CFD grid in ../shared/data/cfd and every mesh in
 ../shared/data/meshes. JSON rows: grid, cells, locator, build_ms (median of 3), bytes (ours:
 GetMemorySize, everything the locator holds; vtkStaticCellLocator: estimated from its layout,
-VTK 9.1 reports none; the other VTK locators: -1), findcell_pts_per_s_1thread, findcell_pts_per_s_all,
+VTK 9.1 reports none; the other VTK locators: -1), findcell_pts_per_s_1thread (findcell_pts_per_cpu_s_1thread: the same loop timed by its
+thread's CPU time), findcell_pts_per_s_all,
 rays_per_s (segments of a quarter of the diagonal from random points, first hit; rays_per_cpu_s the
 same loop timed by its thread's CPU time), disagreements
 (FindCell answers that differ from vtkCellLocator's and do not contain the point, or found/not
@@ -102,12 +103,16 @@ def main() -> int:
         # The same from thread CPU time: robust on a machine shared with other work.
         if r.get("rays_per_cpu_s") and s.get("rays_per_cpu_s"):
             r["rays_cpu_speedup_vs_static"] = r["rays_per_cpu_s"] / s["rays_per_cpu_s"]
+        if r.get("findcell_pts_per_cpu_s_1thread") and s.get("findcell_pts_per_cpu_s_1thread"):
+            r["findcell_cpu_speedup_vs_static"] = (r["findcell_pts_per_cpu_s_1thread"] /
+                                                   s["findcell_pts_per_cpu_s_1thread"])
         r["build_ratio_vs_static"] = r["build_ms"] / s["build_ms"]
         r["bytes_ratio_vs_static"] = r["bytes"] / s["bytes"] if r["bytes"] > 0 and s["bytes"] > 0 else -1
         r["machine"] = machine()
     cols = ["grid", "cells", "locator", "backend", "device", "build_ms", "bytes", "findcell_pts_per_s_1thread",
             "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "rays_per_cpu_s", "disagreements",
-            "differs_from_cpu", "findcell_speedup_vs_static", "rays_speedup_vs_static", "rays_cpu_speedup_vs_static",
+            "differs_from_cpu", "findcell_speedup_vs_static", "findcell_cpu_speedup_vs_static", "rays_speedup_vs_static",
+            "rays_cpu_speedup_vs_static",
             "build_ratio_vs_static", "bytes_ratio_vs_static"]
     print(table(rows, cols))
     write_outputs(a.json, rows, a.markdown, rows, cols)

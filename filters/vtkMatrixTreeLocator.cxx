@@ -25,9 +25,14 @@
 
 #include <omp.h>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 #include <string>
 #include <limits>
@@ -139,6 +144,84 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
   }
 }
 
+// The leaf's quantized boxes (6 bytes per reference: xlo xhi ylo yhi zlo zhi) against a
+// quantized range [qmin, qmax] per axis: a box passes when lo <= qmax and hi >= qmin on every
+// axis. FindCell asks with qmax = floor(q), qmin = ceil(q) (the box holds q); the ray queries
+// with the bounds of the segment's part in the leaf.
+class ByteBoxTest
+{
+public:
+  ByteBoxTest(const uint8_t qmax[3], const uint8_t qmin[3])
+  {
+    for (int a = 0; a < 3; ++a)
+    {
+      this->Max[a] = qmax[a];
+      this->Min[a] = qmin[a];
+    }
+#if defined(__SSE2__)
+    // Eight boxes are 48 bytes, three 16-byte loads. A byte at offset p is field p % 6 of box
+    // p / 6: a lower bound (even field) passes when it is <= qmax, an upper bound (odd) when it
+    // is >= qmin, i.e. when its complement is <= 255 - qmin. So the upper bounds are
+    // complemented (xor) and every byte compared with one threshold: max(y, T) == T.
+    alignas(16) static const uint8_t kFlip[48] = { 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0,
+      0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff,
+      0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff };
+    const uint8_t pat[6] = { qmax[0], static_cast<uint8_t>(255 - qmin[0]), qmax[1],
+      static_cast<uint8_t>(255 - qmin[1]), qmax[2], static_cast<uint8_t>(255 - qmin[2]) };
+    alignas(16) uint8_t t[48];
+    for (int i = 0; i < 8; ++i)
+    {
+      std::memcpy(t + 6 * i, pat, 6);
+    }
+    for (int v = 0; v < 3; ++v)
+    {
+      this->Flip[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(kFlip + 16 * v));
+      this->Thr[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(t + 16 * v));
+    }
+#endif
+  }
+
+  // The k in [k, stop) whose box passes, ascending, into out; their number.
+  int gather(const uint8_t* boxes, uint32_t k, uint32_t stop, uint32_t* out) const
+  {
+    int n = 0;
+#if defined(__SSE2__)
+    for (; k + 8 <= stop; k += 8)
+    {
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      uint64_t m = 0;
+      for (int v = 0; v < 3; ++v)
+      {
+        const __m128i y =
+          _mm_xor_si128(_mm_loadu_si128(reinterpret_cast<const __m128i*>(qb + 16 * v)), this->Flip[v]);
+        const __m128i ok = _mm_cmpeq_epi8(_mm_max_epu8(y, this->Thr[v]), this->Thr[v]);
+        m |= static_cast<uint64_t>(static_cast<uint32_t>(_mm_movemask_epi8(ok))) << (16 * v);
+      }
+      for (int i = 0; i < 8; ++i)
+      {
+        out[n] = k + i;
+        n += ((m >> (6 * i)) & 63) == 63 ? 1 : 0;
+      }
+    }
+#endif
+    for (; k < stop; ++k)
+    {
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      const bool pass = (qb[0] <= this->Max[0]) & (qb[1] >= this->Min[0]) & (qb[2] <= this->Max[1]) &
+        (qb[3] >= this->Min[1]) & (qb[4] <= this->Max[2]) & (qb[5] >= this->Min[2]);
+      out[n] = k;
+      n += pass ? 1 : 0;
+    }
+    return n;
+  }
+
+private:
+  uint8_t Max[3], Min[3];
+#if defined(__SSE2__)
+  __m128i Flip[3], Thr[3];
+#endif
+};
+
 // vtkTetra::EvaluatePosition accepts barycentric coordinates within this of [0, 1].
 constexpr double kTetraTolerance = 1e-3;
 
@@ -160,28 +243,254 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   {
     q[a] = std::min(255.0, std::max(0.0, (x[a] - lb.lo[a]) * (255.0 / (lb.hi[a] - lb.lo[a]))));
   }
+  // q inside [lo, hi] (integers) is floor(q) >= lo and ceil(q) <= hi: the test in bytes.
+  uint8_t qf[3], qc[3];
+  for (int a = 0; a < 3; ++a)
+  {
+    qf[a] = static_cast<uint8_t>(static_cast<int>(q[a]));
+    qc[a] = static_cast<uint8_t>(static_cast<int>(q[a]) + (static_cast<int>(q[a]) < q[a] ? 1 : 0));
+  }
+  const ByteBoxTest boxTest(qf, qc);
   double closest[3], dist2;
   int subId = 0;
-  for (; k < r.end; ++k)
+  // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
+  // ids, so the first that contains the point is still the answer), then their point ids and
+  // points are prefetched ahead of the tests: each test's reads are random, and without the hint
+  // they stall one after another.
+  constexpr uint32_t kChunk = 16;
+  uint32_t cand[kChunk];
+  while (k < r.end)
   {
-    const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
-    if (q[0] < qb[0] || q[0] > qb[1] || q[1] < qb[2] || q[1] > qb[3] || q[2] < qb[4] || q[2] > qb[5])
+    const uint32_t stop = std::min<uint32_t>(r.end, k + kChunk);
+    const int nc = boxTest.gather(boxes, k, stop, cand);
+    for (int j = 0; j < nc; ++j)
     {
-      continue;
+      cand[j] = ids[cand[j]];
     }
-    const vtkIdType id = ids[k];
-    if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+    k = stop;
+    // Only ahead of tetrahedra (judged by the first candidate): their cheap pre-test would wait
+    // on the reads; a larger cell goes to VTK's EvaluatePosition (Newton steps), which hides
+    // them, and there the hints measured slower.
+    const bool ahead = nc > 1 && in.Cells.type(cand[0]) == mtree::kTetra;
+    for (int j = 0; ahead && j < std::min(nc, 4); ++j)
     {
-      continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
+      in.Cells.prefetchPointIds(cand[j]);
     }
-    FillCell(ds, in, id, cell);
-    if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
+    for (int j = 0; j < nc; ++j)
     {
-      return id;
+      if (ahead && j + 4 < nc)
+      {
+        in.Cells.prefetchPointIds(cand[j + 4]);
+      }
+      if (ahead && j + 2 < nc)
+      {
+        in.Cells.prefetchPoints(cand[j + 2]);
+      }
+      const vtkIdType id = cand[j];
+      if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+      {
+        continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
+      }
+      FillCell(ds, in, id, cell);
+      if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
+      {
+        return id;
+      }
     }
   }
   return -1;
 }
+
+// The ray queries' first test of a leaf's candidates (tol = 0): the segment o + t d, t in
+// [0, bound], against each candidate's quantized box in this leaf (LeafBoxes, read in order),
+// in double precision and grown by a margin (below). The quantized box contains the part of
+// the cell's bounds (padded by 1e-3 of their extent) inside the leaf, so a VTK hit of the
+// cell at a point of this leaf lies in it. A candidate that fails is only not tested in this
+// leaf (it is not put in the mailbox): a hit elsewhere lies in another leaf that references
+// the cell (a cell is referenced in every leaf it overlaps), which the walk visits before it
+// can stop past that t. The margin (1e-7 of the leaf plus round-off in the coordinates'
+// magnitude) keeps a hit that round-off puts on the other side of a leaf face in both leaves.
+// With tol > 0 a hit may lie up to tol outside the cell, in a leaf that does not reference it:
+// those queries test every candidate as before.
+class LeafSegmentFilter
+{
+public:
+  struct Candidate
+  {
+    double t; // where the segment enters the candidate's (grown) box, >= 0
+    uint32_t k; // index into the leaf's candidates
+  };
+
+  LeafSegmentFilter(const vtkMatrixTreeLocatorInternals& in, mtree::Vec3 o, mtree::Vec3 d, double tol)
+    : In(in), O(o), D(d)
+  {
+    const auto& prims = in.Tree.primitiveIndices();
+    this->Enabled = tol == 0.0 && !in.Tree.empty() && mtree::isFinite(o) && mtree::isFinite(d) &&
+      !(d.x == 0 && d.y == 0 && d.z == 0) && in.LeafBoxes.size() == 6 * prims.size();
+    this->Prims = prims.data();
+    this->NumPrims = prims.size();
+    this->H = in.Tree.height();
+    const mtree::Vec3 e = o + d;
+    this->Mag = std::max({ std::fabs(o.x), std::fabs(o.y), std::fabs(o.z), std::fabs(e.x), std::fabs(e.y),
+      std::fabs(e.z) });
+  }
+
+  // The candidates of the leaf whose references start at `ids` that the segment may hit in
+  // this leaf at t <= bound, in `out` sorted by entry t; -1 if the leaf was not identified
+  // (then every candidate must be tested).
+  int candidates(const uint32_t* ids, uint32_t count, double tEnter, double tExit, double bound,
+    Candidate* out) const
+  {
+    if (!this->Enabled || count == 0 || ids < this->Prims || ids + count > this->Prims + this->NumPrims)
+    {
+      return -1;
+    }
+    const mtree::MatrixTree& tree = this->In.Tree;
+    const mtree::Box& root = tree.rootBox();
+    const mtree::Vec3 cs = tree.cellSize(this->H);
+    const double tm = 0.5 * (tEnter + tExit);
+    const mtree::Vec3 p = this->O + this->D * tm;
+    int L[3];
+    for (int a = 0; a < 3; ++a)
+    {
+      L[a] = mtree::cellIndex((p[a] - root.lo[a]) / cs[a], 0, tree.dim(this->H, a) - 1);
+    }
+    MtLeafRange r;
+    const uint32_t begin = static_cast<uint32_t>(ids - this->Prims);
+    if (!tree.leafAt(L, r) || r.begin != begin || r.end - r.begin != count)
+    {
+      return -1;
+    }
+    const mtree::Box lb = tree.nodeBox(this->H, L);
+    constexpr double eps = std::numeric_limits<double>::epsilon();
+    const double mag = std::max({ this->Mag, std::fabs(lb.lo.x), std::fabs(lb.lo.y), std::fabs(lb.lo.z),
+      std::fabs(lb.hi.x), std::fabs(lb.hi.y), std::fabs(lb.hi.z) });
+    // Per axis: t of quantized coordinate q is A + q B (moving axes), within +-M; a static
+    // axis needs its coordinate's q within [qlo, qhi] grown by the margin.
+    double A[3], B[3], M[3], SLo[3], SHi[3], Margin[3];
+    bool moving[3];
+    bool anyStatic = false;
+    for (int a = 0; a < 3; ++a)
+    {
+      const double w = lb.hi[a] - lb.lo[a];
+      if (!(w > 0) || !std::isfinite(w))
+      {
+        return -1;
+      }
+      const double unit = w / 255.0;
+      const double margin = 1e-7 * w + 16 * eps * mag; // world units
+      Margin[a] = margin;
+      moving[a] = this->D[a] != 0;
+      if (moving[a])
+      {
+        const double inv = 1.0 / this->D[a];
+        A[a] = (lb.lo[a] - this->O[a]) * inv;
+        B[a] = unit * inv;
+        M[a] = margin * std::fabs(inv) + 8 * eps * (std::fabs(A[a]) + 255 * std::fabs(B[a]));
+        if (!std::isfinite(A[a]) || !std::isfinite(B[a]) || !std::isfinite(M[a]))
+        {
+          return -1;
+        }
+      }
+      else
+      {
+        anyStatic = true;
+        const double q = (this->O[a] - lb.lo[a]) / unit, mq = margin / unit + 1e-9;
+        SLo[a] = q - mq; // passes when qhi >= SLo and qlo <= SHi
+        SHi[a] = q + mq;
+      }
+    }
+    const uint8_t* boxes = this->In.LeafBoxes.data() + 6 * static_cast<size_t>(begin);
+    // First the boxes against the bounds of the segment's part in the leaf (a byte test, eight
+    // boxes at a time): t in [0, bound] clipped to the leaf grown by the margin (every grown
+    // box lies in it), then that part's quantized range per axis, grown by the margin (and
+    // 1e-3 of a quantum for round-off), rounded outwards. NaN gives the full range.
+    double ta = 0.0, tb = bound;
+    for (int a = 0; a < 3; ++a)
+    {
+      if (moving[a])
+      {
+        const double t1 = A[a], t2 = A[a] + 255 * B[a];
+        ta = std::max(ta, std::min(t1, t2) - M[a]);
+        tb = std::min(tb, std::max(t1, t2) + M[a]);
+      }
+      else if (SHi[a] < 0 || SLo[a] > 255)
+      {
+        return 0;
+      }
+    }
+    if (!(ta <= tb))
+    {
+      return 0;
+    }
+    uint8_t qmin[3], qmax[3];
+    for (int a = 0; a < 3; ++a)
+    {
+      const double unit = (lb.hi[a] - lb.lo[a]) / 255.0;
+      const double q0 = (this->O[a] + this->D[a] * ta - lb.lo[a]) / unit;
+      const double q1 = (this->O[a] + this->D[a] * tb - lb.lo[a]) / unit;
+      const double mq = Margin[a] / unit + 1e-3;
+      const double lo = std::min(q0, q1) - mq, hi = std::max(q0, q1) + mq;
+      qmin[a] = static_cast<uint8_t>(lo > 0 ? (lo < 255 ? std::floor(lo) : 255) : 0);
+      qmax[a] = static_cast<uint8_t>(hi < 255 ? (hi > 0 ? std::ceil(hi) : 0) : 255);
+    }
+    const ByteBoxTest boxTest(qmax, qmin);
+    constexpr uint32_t kChunk = 64;
+    uint32_t idx[kChunk];
+    int n = 0;
+    for (uint32_t k0 = 0; k0 < count; k0 += kChunk)
+    {
+      const int ng = boxTest.gather(boxes, k0, std::min(count, k0 + kChunk), idx);
+      for (int g = 0; g < ng; ++g)
+      {
+      const uint32_t k = idx[g];
+      const uint8_t* qb = boxes + 6 * static_cast<size_t>(k);
+      double te = 0.0, tx = bound;
+      for (int a = 0; a < 3; ++a)
+      {
+        if (moving[a])
+        {
+          const double t1 = A[a] + qb[2 * a] * B[a], t2 = A[a] + qb[2 * a + 1] * B[a];
+          te = std::max(te, std::min(t1, t2) - M[a]);
+          tx = std::min(tx, std::max(t1, t2) + M[a]);
+        }
+        else if (anyStatic && (qb[2 * a + 1] < SLo[a] || qb[2 * a] > SHi[a]))
+        {
+          tx = -1.0;
+        }
+      }
+      if (te <= tx)
+      {
+        out[n].t = te;
+        out[n].k = k;
+        ++n;
+      }
+      }
+    }
+    // Insertion sort by entry t (a handful of survivors).
+    for (int i = 1; i < n; ++i)
+    {
+      const Candidate c = out[i];
+      int j = i - 1;
+      while (j >= 0 && out[j].t > c.t)
+      {
+        out[j + 1] = out[j];
+        --j;
+      }
+      out[j + 1] = c;
+    }
+    return n;
+  }
+
+private:
+  const vtkMatrixTreeLocatorInternals& In;
+  mtree::Vec3 O, D;
+  const uint32_t* Prims = nullptr;
+  size_t NumPrims = 0;
+  int H = 0;
+  double Mag = 0;
+  bool Enabled = false;
+};
 
 }
 
@@ -484,8 +793,14 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   double best = VTK_DOUBLE_MAX, tt, xx[3], pc[3];
   int sid;
   vtkIdType bestId = -1;
-  // Tetrahedra whose hit is certain from the engine's copy (tetraFirstHitIfCertain, tol 0) are
-  // not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
+  // With tol = 0 each leaf's candidates are first tested against their quantized boxes in this
+  // leaf (LeafBoxes: sequential bytes, where the cells' own bounds are a random read each); see
+  // LeafSegmentFilter. Those that pass are taken in the order the segment enters their boxes,
+  // and the leaf stops at the first whose entry lies beyond the best hit so far.
+  const LeafSegmentFilter leafFilter(in, o, d, tol);
+  vtkIdType filled = -1; // the cell `cell` holds
+  // Cells whose hit is certain from the engine's copy (firstHitIfCertain, tol 0: tetrahedra, and
+  // hexahedra, wedges and pyramids with planar faces) are not handed to VTK one by one: the first of them is kept, and VTK evaluates only that one at
   // the end, for the exact t, x and pcoords. Should VTK not confirm it (it never did in the
   // tests), the query is run again with every cell going to VTK.
   for (int pass = 0; pass < 2; ++pass)
@@ -498,53 +813,101 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
     vtkIdType mailbox[64];
     std::fill(mailbox, mailbox + 64, -1);
+    LeafSegmentFilter::Candidate stackBuf[256];
+    std::vector<LeafSegmentFilter::Candidate> heapBuf;
+    // boxTest: whether the cell's own bounds are tested first (not needed after the leaf's
+    // quantized boxes, which reject as much: a random read saved per candidate).
+    auto test = [&](vtkIdType id, bool boxTest) {
+      vtkIdType& slot = mailbox[id & 63];
+      if (slot == id)
+      {
+        return;
+      }
+      slot = id;
+      const double bound = std::min({ best, deferredT, 1.0 });
+      if (boxTest)
+      {
+        // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
+        const float* cb = in.Cells.cellBox(id);
+        mtree::Box box;
+        box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
+        box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
+        double t0 = 0.0, t1 = bound;
+        if (!mtree::rayBox(o, d, box, t0, t1))
+        {
+          return;
+        }
+      }
+      // Then the cell's points: most cells whose box the segment crosses are proved missed
+      // (or hit only beyond the best t so far) without VTK (segment_filter.h).
+      double tc;
+      const mtree::CellVerdict verdict =
+        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferTets, tc);
+      if (verdict == mtree::CellVerdict::kMiss)
+      {
+        return;
+      }
+      if (verdict == mtree::CellVerdict::kCertain)
+      {
+        if (tc < deferredT)
+        {
+          deferredT = tc;
+          deferredId = id;
+        }
+        return;
+      }
+      FillCell(this->DataSet, in, id, cell);
+      filled = id;
+      if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
+      {
+        best = tt;
+        bestId = id;
+        std::copy(xx, xx + 3, x);
+        std::copy(pc, pc + 3, pcoords);
+        subId = sid;
+      }
+    };
     in.Tree.traverseRay(
       o, d, 0.0, 1.0,
-      [&](const uint32_t* ids, uint32_t count, double, double tExit) {
-        for (uint32_t k = 0; k < count; ++k)
+      [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit) {
+        LeafSegmentFilter::Candidate* cand = stackBuf;
+        if (count > 256)
         {
-          const vtkIdType id = ids[k];
-          vtkIdType& slot = mailbox[id & 63];
-          if (slot == id)
+          heapBuf.resize(count);
+          cand = heapBuf.data();
+        }
+        const int nc =
+          leafFilter.candidates(ids, count, tEnter, tExit, std::min({ best, deferredT, 1.0 }), cand);
+        if (nc < 0)
+        {
+          for (uint32_t k = 0; k < count; ++k)
           {
-            continue;
+            test(ids[k], true);
           }
-          slot = id;
-          const double bound = std::min({ best, deferredT, 1.0 });
-          // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
-          const float* cb = in.Cells.cellBox(id);
-          mtree::Box box;
-          box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
-          box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
-          double t0 = 0.0, t1 = bound;
-          if (!mtree::rayBox(o, d, box, t0, t1))
+        }
+        else
+        {
+          // The survivors are known ahead: their point ids, then their points, are fetched
+          // a few candidates early (random reads that otherwise stall each test in turn).
+          for (int j = 0; j < std::min(nc, 4); ++j)
           {
-            continue;
+            in.Cells.prefetchPointIds(ids[cand[j].k]);
           }
-          // Then the cell's points: most cells whose box the segment crosses are proved missed
-          // (or hit only beyond the best t so far) without VTK (segment_filter.h).
-          if (!mtree::segmentMayHitCell(frame, in.Cells, static_cast<size_t>(id), bound))
+          for (int j = 0; j < nc; ++j)
           {
-            continue;
-          }
-          double tc;
-          if (deferTets && mtree::tetraFirstHitIfCertain(frame, in.Cells, static_cast<size_t>(id), tc))
-          {
-            if (tc < deferredT)
+            if (cand[j].t > std::min({ best, deferredT, 1.0 }))
             {
-              deferredT = tc;
-              deferredId = id;
+              break; // sorted: the rest enter their boxes in this leaf later still
             }
-            continue;
-          }
-          FillCell(this->DataSet, in, id, cell);
-          if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
-          {
-            best = tt;
-            bestId = id;
-            std::copy(xx, xx + 3, x);
-            std::copy(pc, pc + 3, pcoords);
-            subId = sid;
+            if (j + 4 < nc)
+            {
+              in.Cells.prefetchPointIds(ids[cand[j + 4].k]);
+            }
+            if (j + 2 < nc)
+            {
+              in.Cells.prefetchPoints(ids[cand[j + 2].k]);
+            }
+            test(ids[cand[j].k], false);
           }
         }
         return (bestId >= 0 || deferredId >= 0) && std::min(best, deferredT) <= tExit;
@@ -555,6 +918,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       break;
     }
     FillCell(this->DataSet, in, deferredId, cell);
+    filled = deferredId;
     if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
     {
       if (bestId < 0 || tt < best)
@@ -574,7 +938,10 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   }
   t = best;
   cellId = bestId;
-  FillCell(this->DataSet, in, bestId, cell);
+  if (filled != bestId) // the winner is usually the last cell VTK evaluated: already there
+  {
+    FillCell(this->DataSet, in, bestId, cell);
+  }
   return 1;
 }
 

@@ -273,10 +273,24 @@ struct Frame {
   double dt;         // world units per step
   float threshold;
   int lanes;         // 8: the unshaded UInt8/UInt16 float rays take the AVX2 marcher; 1: the SSE2 one
+  bool setup4;       // perspective rays are set up 4 at a time with AVX2 (setupRays4: the same rays)
   const uint32_t* runBricks;  // AVX2 marcher: per level-0 brick its stored brick where the walk may
                               // march through it, MT_NULL where it stops (absent; skipping: invisible)
   double spacing[3];
   double ambient, diffuse, specular, specularPower;
+};
+
+/// A ray of a tile queued for marchApronAvx2Pair (index-space origin and direction, entry, last
+/// sample, its pixel), and a tile's queue.
+struct PendingRay {
+  double ro[3], rd[3], t0;
+  int64_t kEnd;
+  float* out;
+};
+struct PendingRayList {
+  static constexpr int CAPACITY = 64;
+  PendingRay rays[CAPACITY];
+  int count = 0;
 };
 
 /// Fetch policies: enter(brick) resolves a brick's storage once; corners(local cell) reads the 8
@@ -603,7 +617,9 @@ struct ApronRay {
   __m128 P0, S;
   __m128 nf;     // points per axis (float; 1 in lane 3)
   __m128i nm2;   // the last cell per axis, n - 2 (0 in lane 3)
-  ApronRay(const Frame& F, const double o[3], const double d[3], double t0) {
+  ApronRay() = default;
+  ApronRay(const Frame& F, const double o[3], const double d[3], double t0) { set(F, o, d, t0); }
+  void set(const Frame& F, const double o[3], const double d[3], double t0) {
     for (int a = 0; a < 3; ++a) {
       P0s[a] = float(o[a] + d[a] * t0);
       Ss[a] = float(d[a] * F.dt);
@@ -787,15 +803,245 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
 /// array is padded for it, see BlockSparseVolume::BRICK_PAD.)
 MT_AVX2 inline void gatherPairs(const uint8_t* base, __m256i off, __m256 & first, __m256 & second) {
   const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 1);
-  const __m256i m = _mm256_set1_epi32(0xFF);
-  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, m));
-  second = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(w, 8), m));
+  first = _mm256_cvtepi32_ps(_mm256_and_si256(w, _mm256_set1_epi32(0xFF)));
+  // Byte 1 of each 32-bit lane into byte 0, zeros above (one shuffle for a shift and a mask).
+  const __m256i byte1 = _mm256_setr_epi8(1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1,
+                                         1, -1, -1, -1, 5, -1, -1, -1, 9, -1, -1, -1, 13, -1, -1, -1);
+  second = _mm256_cvtepi32_ps(_mm256_shuffle_epi8(w, byte1));
 }
 MT_AVX2 inline void gatherPairs(const uint16_t* base, __m256i off, __m256 & first, __m256 & second) {
   const __m256i w = _mm256_i32gather_epi32(reinterpret_cast<const int*>(base), off, 2);
   first = _mm256_cvtepi32_ps(_mm256_and_si256(w, _mm256_set1_epi32(0xFFFF)));
   second = _mm256_cvtepi32_ps(_mm256_srli_epi32(w, 16));
 }
+
+/// The per-ray constants of marchApronAvx2's chunks (broadcast once per ray).
+template <typename T>
+struct Avx2Ray {
+  __m256 P0x, P0y, P0z, Sx, Sy, Sz;
+  __m256i mx, my, mz;  // n - 2 per axis: cells that need no clamping are 0..n-2
+  __m256i nb0, nb1;    // level-0 bricks along x, y
+  __m256 tlo, tscale, offset;
+  __m256i tlast, zeroEntry;
+  const int* bricks;  // F.runBricks: MT_NULL (-1) where the walk takes over
+  const int* words;   // per level-0 brick 16 mask words: bit x + 8 y + 64 z
+  const T* data;
+};
+
+/// One chunk of 8 consecutive samples k..k+7 (kf = k as a float): how many leading lanes are
+/// taken (n: the cell needs no clamping, its brick is stored and visible, and the sample is one of
+/// the ray's, i.e. lane <= left = kEnd - k), which of those lanes' cells are visible (vis), and
+/// each lane's table entry offset (idx; the all-zero entry for an invisible cell). Only computed
+/// when vis != 0.
+struct Avx2Chunk {
+  int n;
+  unsigned vis;
+  __m256i idx;
+};
+
+template <typename T>
+MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R, float kf, int64_t left,
+                                                              Avx2Chunk& out) {
+  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY, VOL = BlockSparseVolume::BRICK_VOLUME;
+  static_assert(SY == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
+  const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
+  const __m256 kv = _mm256_add_ps(_mm256_set1_ps(kf), _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f));
+  const __m256 px = _mm256_add_ps(R.P0x, _mm256_mul_ps(kv, R.Sx));
+  const __m256 py = _mm256_add_ps(R.P0y, _mm256_mul_ps(kv, R.Sy));
+  const __m256 pz = _mm256_add_ps(R.P0z, _mm256_mul_ps(kv, R.Sz));
+  const __m256i ix = _mm256_cvttps_epi32(px), iy = _mm256_cvttps_epi32(py), iz = _mm256_cvttps_epi32(pz);
+  // Cells that need no clamping: 0 <= i <= n - 2 per axis, i.e. i <= n - 2 as unsigned.
+  const __m256i inside = _mm256_and_si256(
+      _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_min_epu32(ix, R.mx), ix), _mm256_cmpeq_epi32(_mm256_min_epu32(iy, R.my), iy)),
+      _mm256_cmpeq_epi32(_mm256_min_epu32(iz, R.mz), iz));
+  // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
+  const __m256i b = _mm256_and_si256(
+      inside, _mm256_add_epi32(
+                  _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), R.nb1),
+                                                      _mm256_srli_epi32(iy, LOG2DIM)),
+                                     R.nb0),
+                  _mm256_srli_epi32(ix, LOG2DIM)));
+  const __m256i ptr = _mm256_i32gather_epi32(R.bricks, b, 4);
+  // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
+  // of the masks, issued without waiting for the brick pointers; shifted into the sign bit.
+  const __m256i lx = _mm256_and_si256(ix, seven), ly = _mm256_and_si256(iy, seven), lz = _mm256_and_si256(iz, seven);
+  const __m256i bit = _mm256_add_epi32(lx, _mm256_add_epi32(_mm256_slli_epi32(ly, 3), _mm256_slli_epi32(lz, 6)));
+  const __m256i word = _mm256_i32gather_epi32(R.words, _mm256_add_epi32(_mm256_slli_epi32(b, 4), _mm256_srli_epi32(bit, 5)), 4);
+  const __m256 vbit = _mm256_castsi256_ps(_mm256_sllv_epi32(word, _mm256_andnot_si256(bit, _mm256_set1_epi32(31))));
+  // Lanes taken: no clamping, and a brick marched through.
+  const __m256i take = _mm256_andnot_si256(_mm256_cmpeq_epi32(ptr, _mm256_set1_epi32(-1)), inside);
+  unsigned go = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(take)));
+  if (left < 7) go &= (2u << left) - 1u;  // lanes 0..left are samples of the ray
+  const int n = __builtin_ctz(~go);       // leading lanes taken (go < 256: at most 8)
+  out.n = n;
+  out.vis = n == 0 ? 0u : unsigned(_mm256_movemask_ps(vbit)) & ((2u << (n - 1)) - 1u);
+  if (!out.vis) return;
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 fx = _mm256_max_ps(_mm256_sub_ps(px, _mm256_cvtepi32_ps(ix)), zero);
+  const __m256 fy = _mm256_max_ps(_mm256_sub_ps(py, _mm256_cvtepi32_ps(iy)), zero);
+  const __m256 fz = _mm256_max_ps(_mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz)), zero);
+  // Voxel of corner 0: brick * 9^3 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz; 0 in the
+  // lanes without a brick.
+  const __m256i off = _mm256_and_si256(
+      take, _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(VOL)),
+                             _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz)))));
+  __m256 c0, c1, c2, c3, c4, c5, c6, c7;  // corner dx + 2 dy + 4 dz
+  gatherPairs(R.data, off, c0, c1);
+  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SY)), c2, c3);
+  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SZ)), c4, c5);
+  gatherPairs(R.data, _mm256_add_epi32(off, _mm256_set1_epi32(SZ + SY)), c6, c7);
+  const __m256 z0 = _mm256_add_ps(c0, _mm256_mul_ps(fz, _mm256_sub_ps(c4, c0)));
+  const __m256 z1 = _mm256_add_ps(c1, _mm256_mul_ps(fz, _mm256_sub_ps(c5, c1)));
+  const __m256 z2 = _mm256_add_ps(c2, _mm256_mul_ps(fz, _mm256_sub_ps(c6, c2)));
+  const __m256 z3 = _mm256_add_ps(c3, _mm256_mul_ps(fz, _mm256_sub_ps(c7, c3)));
+  const __m256 y0 = _mm256_add_ps(z0, _mm256_mul_ps(fy, _mm256_sub_ps(z2, z0)));
+  const __m256 y1 = _mm256_add_ps(z1, _mm256_mul_ps(fy, _mm256_sub_ps(z3, z1)));
+  const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), R.offset);
+  const __m256i raw = _mm256_cvttps_epi32(
+      _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, R.tlo), R.tscale), _mm256_set1_ps(0.5f)));
+  // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
+  // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
+  const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), R.tlast), 2);
+  out.idx = _mm256_castps_si256(_mm256_blendv_ps(_mm256_castsi256_ps(R.zeroEntry), _mm256_castsi256_ps(e4), vbit));
+}
+
+/// One ray of marchApronAvx2 as a resumable state: start() sets it up, each step() does one
+/// step of the walk or one chunk and returns false once the ray is done (its pixel written), so
+/// that two rays can be marched in turns (marchApronAvx2Pair): the serial latency of one ray's
+/// walk and compositing then overlaps the other ray's work.
+template <typename T, bool Skip>
+struct Avx2RayMarch {
+  Avx2Ray<T> R;
+  ApronRay ray;
+  ApronFetch<T> fetch;
+  __m128 C, T4;  // AccT's sums with the transmittance broadcast (the same float operations lane by lane)
+  Avx2Chunk cur;
+  const Frame* F;
+  float* out;
+  int64_t k, kEnd;
+  uint64_t samples, skips;
+  float kf, Tmin;
+  bool chunk;  // in a run of chunks (cur is the next one to composite); else the walk is next
+
+  explicit Avx2RayMarch(const ApronFetch<T>& f) : fetch(f) {}
+
+  MT_AVX2 __attribute__((always_inline)) inline void start(const Frame& Fr, const double o[3], const double d[3],
+                                                           double t0, int64_t kEnd_, float* out_) {
+    F = &Fr;
+    out = out_;
+    kEnd = kEnd_;
+    k = 0;
+    samples = skips = 0;
+    chunk = false;
+    Tmin = 1.f - Fr.threshold;
+    ray.set(Fr, o, d, t0);
+    R.P0x = _mm256_set1_ps(ray.P0s[0]), R.P0y = _mm256_set1_ps(ray.P0s[1]), R.P0z = _mm256_set1_ps(ray.P0s[2]);
+    R.Sx = _mm256_set1_ps(ray.Ss[0]), R.Sy = _mm256_set1_ps(ray.Ss[1]), R.Sz = _mm256_set1_ps(ray.Ss[2]);
+    R.mx = _mm256_set1_epi32(Fr.n[0] - 2), R.my = _mm256_set1_epi32(Fr.n[1] - 2), R.mz = _mm256_set1_epi32(Fr.n[2] - 2);
+    R.nb0 = _mm256_set1_epi32(Fr.nb[0]), R.nb1 = _mm256_set1_epi32(Fr.nb[1]);
+    R.tlo = _mm256_set1_ps(Fr.tlo), R.tscale = _mm256_set1_ps(Fr.tscale), R.offset = _mm256_set1_ps(Fr.offset);
+    R.tlast = _mm256_set1_epi32(Fr.tlast);
+    R.zeroEntry = _mm256_set1_epi32(4 * (Fr.tlast + 1));
+    R.bricks = reinterpret_cast<const int*>(Fr.runBricks);
+    R.words = reinterpret_cast<const int*>(fetch.masks);
+    R.data = fetch.data;
+    C = _mm_setzero_ps();
+    T4 = _mm_set1_ps(1.f);
+  }
+
+  /// The ray is done: its pixel and counts.
+  MT_AVX2 __attribute__((always_inline)) inline bool finish(uint64_t& samplesOut, uint64_t& skipsOut) {
+    _mm_storeu_ps(out, C);
+    samplesOut += samples;
+    skipsOut += skips;
+    return false;
+  }
+
+  MT_AVX2 __attribute__((noinline)) bool step(uint64_t& samplesOut, uint64_t& skipsOut) {
+    const Frame& Fr = *F;
+    if (!chunk) {
+      // The walk: to the first sample in a stored visible brick (or one that needs clamping).
+      if (k > kEnd) return finish(samplesOut, skipsOut);
+      int bo[3];
+      if (!apronEnter<T, Skip>(Fr, ray, Fr.vol->levelCount(), kEnd, fetch, k, skips, bo)) return true;
+      kf = float(k);
+      avx2Chunk(R, kf, kEnd - k, cur);
+      if (cur.n == 0) {  // sample k needs clamping: the general path
+        AccT acc;
+        acc.c = C;
+        acc.T = _mm_cvtss_f32(T4);
+        const bool opaque = apronClampedSample<false>(Fr, ray, k, nullptr, acc, samples);
+        C = acc.c;
+        T4 = _mm_set1_ps(acc.T);
+        if (opaque) return finish(samplesOut, skipsOut);
+        ++k;
+        return true;
+      }
+      chunk = true;
+    }
+    // The run of chunks (in locals: registers): each one's successor is prepared first (nothing
+    // in it depends on this one's compositing), so that its gathers' latency overlaps the serial
+    // compositing.
+    __m128 Cr = C, Tr = T4;
+    int64_t kr = k;
+    float kfr = kf;
+    Avx2Chunk c = cur;
+    const float* const table = Fr.table;
+    const __m128 one = _mm_set1_ps(1.f);
+    const float Tm = Tmin;
+    const int64_t ke = kEnd;
+    alignas(32) int32_t idx[8];
+    for (;;) {
+      const bool more = c.n == 8 && ke - kr >= 8;
+      Avx2Chunk next{};  // (idx unset when vis is 0)
+      if (more) avx2Chunk(R, kfr + 8.f, ke - kr - 8, next);
+      if (c.vis) {
+        _mm256_store_si256(reinterpret_cast<__m256i*>(idx), c.idx);
+        const int n = c.n;
+        // The lanes without a termination test: T never grows (each factor 1 - a is in [0, 1] and
+        // rounding is monotone), so it fell to Tmin within the chunk iff it is there at its end;
+        // only then is the chunk composited again from its start, lane by lane with the test.
+        const __m128 C0 = Cr, T0 = Tr;
+        const auto add = [&](int j) __attribute__((always_inline)) {
+          const float* e = table + idx[j];
+          Cr = _mm_add_ps(Cr, _mm_mul_ps(Tr, _mm_loadu_ps(e)));
+          Tr = _mm_mul_ps(Tr, _mm_sub_ps(one, _mm_set1_ps(e[3])));
+        };
+        if (n == 8) {
+          for (int j = 0; j < 8; ++j) add(j);
+        } else {
+          for (int j = 0; j < n; ++j) add(j);
+        }
+        if (_mm_cvtss_f32(Tr) <= Tm) {
+          Cr = C0;
+          Tr = T0;
+          int j = 0;
+          for (; j < n - 1; ++j) {
+            add(j);
+            if (_mm_cvtss_f32(Tr) <= Tm) break;
+          }
+          if (j == n - 1) add(j);  // (the last lane: where the end test found it)
+          samples += __builtin_popcount(c.vis & ((2u << j) - 1u));
+          C = Cr;
+          return finish(samplesOut, skipsOut);
+        }
+        samples += __builtin_popcount(c.vis);
+      }
+      if (!more) {
+        kr += c.n;
+        break;
+      }
+      kr += 8;  // not k += n: the next chunk's positions need not wait for this one's gathers
+      kfr += 8.f;
+      c = next;
+    }
+    C = Cr;
+    T4 = Tr;
+    k = kr;
+    chunk = false;
+    return true;
+  }
+};
 
 /// marchApron<T, Skip, false> for 8 consecutive samples at a time. The same walk (apronEnter,
 /// apronClampedSample) finds the first sample in a stored visible brick; from there samples
@@ -813,127 +1059,48 @@ MT_AVX2 inline void gatherPairs(const uint16_t* base, __m256i off, __m256 & firs
 template <typename T, bool Skip>
 MT_AVX2 void marchApronAvx2(const Frame& F, ApronFetch<T> fetch, const double o[3], const double d[3], double t0,
                             int64_t kEnd, float out[4], uint64_t& samplesOut, uint64_t& skipsOut) {
-  uint64_t samples = 0, skips = 0;
-  AccT acc;
-  const float Tmin = 1.f - F.threshold;
-  const ApronRay ray(F, o, d, t0);
-  const __m256 P0x = _mm256_set1_ps(ray.P0s[0]), P0y = _mm256_set1_ps(ray.P0s[1]), P0z = _mm256_set1_ps(ray.P0s[2]);
-  const __m256 Sx = _mm256_set1_ps(ray.Ss[0]), Sy = _mm256_set1_ps(ray.Ss[1]), Sz = _mm256_set1_ps(ray.Ss[2]);
-  const __m256 laneF = _mm256_setr_ps(0.f, 1.f, 2.f, 3.f, 4.f, 5.f, 6.f, 7.f);
-  const __m256 zero = _mm256_setzero_ps();
-  const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
-  // Cells that need no clamping: 0 <= i <= n - 2 per axis.
-  const __m256i mx = _mm256_set1_epi32(F.n[0] - 2), my = _mm256_set1_epi32(F.n[1] - 2), mz = _mm256_set1_epi32(F.n[2] - 2);
-  const __m256i nb0 = _mm256_set1_epi32(F.nb[0]), nb1 = _mm256_set1_epi32(F.nb[1]);
-  const __m256 tlo = _mm256_set1_ps(F.tlo), tscale = _mm256_set1_ps(F.tscale), half = _mm256_set1_ps(0.5f);
-  const __m256i tlast = _mm256_set1_epi32(F.tlast);
-  const __m256 offset = _mm256_set1_ps(F.offset);
-  const float* const table = F.table;
-  const int levels = F.vol->levelCount();
-  const int* const bricks = reinterpret_cast<const int*>(F.runBricks);  // MT_NULL (-1): not marched through
-  const int* const words = reinterpret_cast<const int*>(fetch.masks);   // per brick 16 words: bit x + 8 y + 64 z
-  const T* const data = fetch.data;
-  constexpr int SY = BlockSparseVolume::APRON, SZ = SY * SY, VOL = BlockSparseVolume::BRICK_VOLUME;
-  static_assert(SY == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
-  const __m256i rowY = _mm256_set1_epi32(SY), rowZ = _mm256_set1_epi32(SZ), rowYZ = _mm256_set1_epi32(SZ + SY);
-  const __m256i brickVolume = _mm256_set1_epi32(VOL);
-  const __m256i zeroEntry = _mm256_set1_epi32(4 * (F.tlast + 1));
-  alignas(32) int32_t idx[8];
-  int64_t k = 0;
-  while (k <= kEnd) {
-    int bo[3];
-    if (!apronEnter<T, Skip>(F, ray, levels, kEnd, fetch, k, skips, bo)) continue;
-    const int64_t kStart = k;
-    bool done = false;
-    float kf = float(k);
-    while (k <= kEnd) {
-      const __m256 kv = _mm256_add_ps(_mm256_set1_ps(kf), laneF);
-      const __m256 px = _mm256_add_ps(P0x, _mm256_mul_ps(kv, Sx));
-      const __m256 py = _mm256_add_ps(P0y, _mm256_mul_ps(kv, Sy));
-      const __m256 pz = _mm256_add_ps(P0z, _mm256_mul_ps(kv, Sz));
-      const __m256i ix = _mm256_cvttps_epi32(px), iy = _mm256_cvttps_epi32(py), iz = _mm256_cvttps_epi32(pz);
-      const __m256i clamp = _mm256_or_si256(
-          _mm256_or_si256(_mm256_or_si256(_mm256_cmpgt_epi32(ix, mx), _mm256_cmpgt_epi32(zeroi, ix)),
-                          _mm256_or_si256(_mm256_cmpgt_epi32(iy, my), _mm256_cmpgt_epi32(zeroi, iy))),
-          _mm256_or_si256(_mm256_cmpgt_epi32(iz, mz), _mm256_cmpgt_epi32(zeroi, iz)));
-      // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
-      const __m256i b = _mm256_andnot_si256(
-          clamp, _mm256_add_epi32(
-                     _mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(_mm256_srli_epi32(iz, LOG2DIM), nb1),
-                                                         _mm256_srli_epi32(iy, LOG2DIM)),
-                                        nb0),
-                     _mm256_srli_epi32(ix, LOG2DIM)));
-      const __m256i ptr = _mm256_i32gather_epi32(bricks, b, 4);
-      // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
-      // of the masks, issued without waiting for the brick pointers.
-      const __m256i lx = _mm256_and_si256(ix, seven), ly = _mm256_and_si256(iy, seven), lz = _mm256_and_si256(iz, seven);
-      const __m256i bit = _mm256_add_epi32(lx, _mm256_add_epi32(_mm256_slli_epi32(ly, 3), _mm256_slli_epi32(lz, 6)));
-      const __m256i word = _mm256_i32gather_epi32(words, _mm256_add_epi32(_mm256_slli_epi32(b, 4), _mm256_srli_epi32(bit, 5)), 4);
-      const __m256i vbit = _mm256_slli_epi32(_mm256_srlv_epi32(word, _mm256_and_si256(bit, _mm256_set1_epi32(31))), 31);
-      const __m256i stop = _mm256_or_si256(clamp, _mm256_cmpeq_epi32(ptr, _mm256_set1_epi32(-1)));
-      unsigned go = ~unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(stop))) & 0xFFu;
-      const int64_t left = kEnd - k;  // lanes 0..left are samples of the ray
-      if (left < 7) go &= (2u << left) - 1u;
-      const int n = __builtin_ctz(~go);  // leading lanes taken (go < 256: at most 8)
-      if (n == 0) break;                 // sample k needs clamping or is in an empty brick: the walk
-      const unsigned vis = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(vbit))) & ((2u << (n - 1)) - 1u);
-      if (vis) {
-        const __m256 fx = _mm256_max_ps(_mm256_sub_ps(px, _mm256_cvtepi32_ps(ix)), zero);
-        const __m256 fy = _mm256_max_ps(_mm256_sub_ps(py, _mm256_cvtepi32_ps(iy)), zero);
-        const __m256 fz = _mm256_max_ps(_mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz)), zero);
-        // Voxel of corner 0: brick * 9^3 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz; 0 in the
-        // lanes without a brick.
-        const __m256i off = _mm256_andnot_si256(
-            stop, _mm256_add_epi32(_mm256_mullo_epi32(ptr, brickVolume),
-                                   _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz)))));
-        __m256 c0, c1, c2, c3, c4, c5, c6, c7;  // corner dx + 2 dy + 4 dz
-        gatherPairs(data, off, c0, c1);
-        gatherPairs(data, _mm256_add_epi32(off, rowY), c2, c3);
-        gatherPairs(data, _mm256_add_epi32(off, rowZ), c4, c5);
-        gatherPairs(data, _mm256_add_epi32(off, rowYZ), c6, c7);
-        const __m256 z0 = _mm256_add_ps(c0, _mm256_mul_ps(fz, _mm256_sub_ps(c4, c0)));
-        const __m256 z1 = _mm256_add_ps(c1, _mm256_mul_ps(fz, _mm256_sub_ps(c5, c1)));
-        const __m256 z2 = _mm256_add_ps(c2, _mm256_mul_ps(fz, _mm256_sub_ps(c6, c2)));
-        const __m256 z3 = _mm256_add_ps(c3, _mm256_mul_ps(fz, _mm256_sub_ps(c7, c3)));
-        const __m256 y0 = _mm256_add_ps(z0, _mm256_mul_ps(fy, _mm256_sub_ps(z2, z0)));
-        const __m256 y1 = _mm256_add_ps(z1, _mm256_mul_ps(fy, _mm256_sub_ps(z3, z1)));
-        const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), offset);
-        const __m256i raw = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, tlo), tscale), half));
-        // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
-        // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
-        const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), tlast), 2);
-        _mm256_store_si256(reinterpret_cast<__m256i*>(idx),
-                           _mm256_blendv_epi8(zeroEntry, e4, _mm256_srai_epi32(vbit, 31)));
-        for (int j = 0; j < n; ++j) {
-          acc.add(table + idx[j]);
-          if (acc.T <= Tmin) {
-            samples += __builtin_popcount(vis & ((2u << j) - 1u));
-            done = true;
-            break;
-          }
-        }
-        if (done) break;
-        samples += __builtin_popcount(vis);
-      }
-      if (n < 8) {
-        k += n;
-        break;
-      }
-      k += 8;  // not k += n: the next chunk's positions need not wait for this one's gathers
-      kf += 8.f;
-    }
-    if (done) break;
-    if (k == kStart) {
-      if (apronClampedSample<false>(F, ray, k, nullptr, acc, samples)) break;
-      ++k;
+  Avx2RayMarch<T, Skip> m(fetch);
+  m.start(F, o, d, t0, kEnd, out);
+  while (m.step(samplesOut, skipsOut)) {
+  }
+}
+
+
+/// marchApronAvx2 for `count` rays, SLOTS at a time in turns (a finished ray's slot takes the
+/// next one): every ray's steps are exactly those marchApronAvx2 takes, only their order across
+/// rays changes, so the images and counts are the same. A step (one walk step, or one run of
+/// chunks) is a call, so the rays' latency chains overlap across calls.
+template <typename T, bool Skip, int SLOTS = 2>
+MT_AVX2 void marchApronAvx2Pair(const Frame& F, const ApronFetch<T>& fetch, const PendingRay* rays, int count,
+                                uint64_t& samplesOut, uint64_t& skipsOut) {
+  Avx2RayMarch<T, Skip> m[SLOTS] = {Avx2RayMarch<T, Skip>(fetch), Avx2RayMarch<T, Skip>(fetch)};
+  bool live[SLOTS];
+  int next = 0, active = 0;
+  for (int i = 0; i < SLOTS; ++i) {
+    live[i] = next < count;
+    if (live[i]) {
+      m[i].start(F, rays[next].ro, rays[next].rd, rays[next].t0, rays[next].kEnd, rays[next].out);
+      ++next;
+      ++active;
     }
   }
-  samplesOut += samples;
-  skipsOut += skips;
-  _mm_storeu_ps(out, acc.c);
+  while (active) {
+    for (int i = 0; i < SLOTS; ++i) {
+      if (live[i] && !m[i].step(samplesOut, skipsOut)) {
+        live[i] = next < count;
+        if (live[i]) {
+          m[i].start(F, rays[next].ro, rays[next].rd, rays[next].t0, rays[next].kEnd, rays[next].out);
+          ++next;
+        } else {
+          --active;
+        }
+      }
+    }
+  }
 }
 #endif  // MT_VOLUME_AVX2
 #endif
+
 
 /// march() for every storage; for UInt8/UInt16 in float the SSE2 marcher, or unshaded the AVX2
 /// one where renderVolume chose it (F.lanes == 8).
@@ -957,6 +1124,26 @@ inline void marchRay(const Frame& F, const ApronFetch<T>& fetch, const double o[
   }
 #endif
   marchApron<T, Skip, Shade>(F, fetch, o, d, t0, kEnd, viewDir, out, samples, skips);
+}
+#endif
+
+/// Whether marchImage queues a ray for marchApronAvx2Pair (the rays marchRay sends to
+/// marchApronAvx2), and the queue's consumer: nothing for other storages or settings.
+template <typename R, bool Shade, typename Fetch>
+inline bool pairable(const Frame&, const Fetch&, int64_t) {
+  return false;
+}
+template <typename R, bool Skip, bool Shade, typename Fetch>
+inline void marchPending(const Frame&, const Fetch&, const PendingRayList&, uint64_t&, uint64_t&) {}
+#if MT_VOLUME_AVX2
+template <typename R, bool Shade, typename T>
+inline bool pairable(const Frame& F, const ApronFetch<T>&, int64_t kEnd) {
+  return std::is_same<R, float>::value && !Shade && F.lanes == 8 && kEnd < (int64_t(1) << 24) - 8;
+}
+template <typename R, bool Skip, bool Shade, typename T>
+inline void marchPending(const Frame& F, const ApronFetch<T>& fetch, const PendingRayList& list, uint64_t& samples,
+                         uint64_t& skips) {
+  marchApronAvx2Pair<T, Skip>(F, fetch, list.rays, list.count, samples, skips);
 }
 #endif
 
@@ -1013,6 +1200,101 @@ PixelRect hitRect(const VolumeGeometry& geo, const VolumeCamera& cam, const int 
   return r;
 }
 
+/// A perspective ray in index space as marchImage sets it up: origin (the eye, the same for all),
+/// direction rd, entry t0 and last sample kEnd; d the unit world direction (the headlight).
+struct PixelRay {
+  double rd[3], t0, d[3];
+  int64_t kEnd;
+  bool hit;  // false: the ray misses the box (its pixel stays 0)
+};
+
+/// The per-frame numbers of a perspective ray's set-up (marchImage's expressions).
+struct RaySetupFrame {
+  double fwd[3], spacing[3], roEye[3], hiIdx[3], dt;
+  const double* rightX[3];  // per column: right * (nx th aspect), one array per axis (padded by 3)
+  double upY[3];            // the row's up * (ny th)
+};
+
+/// The scalar set-up of pixel column x of the row in S: marchImage's per-pixel arithmetic.
+inline PixelRay setupRay(const RaySetupFrame& S, int x) {
+  PixelRay r;
+  const Vec3 d = normalized(Vec3(S.fwd[0], S.fwd[1], S.fwd[2]) + Vec3(S.rightX[0][x], S.rightX[1][x], S.rightX[2][x]) +
+                            Vec3(S.upY[0], S.upY[1], S.upY[2]));
+  double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+  bool miss = false;
+  for (int a = 0; a < 3; ++a) {
+    r.d[a] = d[a];
+    r.rd[a] = d[a] / S.spacing[a];
+    if (r.rd[a] == 0) {
+      if (S.roEye[a] < 0 || S.roEye[a] > S.hiIdx[a]) miss = true;
+      continue;
+    }
+    double ta = (0 - S.roEye[a]) / r.rd[a], tb = (S.hiIdx[a] - S.roEye[a]) / r.rd[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  r.t0 = t0;
+  r.hit = !miss && t0 <= t1;
+  r.kEnd = 0;
+  if (r.hit) {
+    const double kx = std::floor((t1 - t0) / S.dt);
+    r.kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
+  }
+  return r;
+}
+
+#if MT_VOLUME_AVX2
+/// setupRay for columns x..x+3 at once, in AVX2 doubles: the same operations in the same order
+/// (additions, products, the square root and the divisions are correctly rounded in every lane;
+/// nothing is fused), so every lane is setupRay's ray bit for bit. max/min keep std::max/min's
+/// operand choice on ties (vmaxpd/vminpd return the second operand then), and an axis the ray
+/// is parallel to sets no bound, as there.
+MT_AVX2 void setupRays4(const RaySetupFrame& S, int x, PixelRay r[4]) {
+  __m256d d[3];
+  for (int a = 0; a < 3; ++a)
+    d[a] = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(S.fwd[a]), _mm256_loadu_pd(S.rightX[a] + x)),
+                         _mm256_set1_pd(S.upY[a]));
+  const __m256d n = _mm256_sqrt_pd(_mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(d[0], d[0]), _mm256_mul_pd(d[1], d[1])),
+                                                 _mm256_mul_pd(d[2], d[2])));
+  const __m256d inv = _mm256_div_pd(_mm256_set1_pd(1.0), n);
+  const __m256d pos = _mm256_cmp_pd(n, _mm256_setzero_pd(), _CMP_GT_OQ);
+  __m256d t0 = _mm256_setzero_pd(), t1 = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  __m256d miss = _mm256_setzero_pd();
+  const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  const __m256d ninf = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+  alignas(32) double dd[3][4], rdd[3][4];
+  for (int a = 0; a < 3; ++a) {
+    d[a] = _mm256_blendv_pd(d[a], _mm256_mul_pd(d[a], inv), pos);
+    const __m256d rd = _mm256_div_pd(d[a], _mm256_set1_pd(S.spacing[a]));
+    _mm256_store_pd(dd[a], d[a]);
+    _mm256_store_pd(rdd[a], rd);
+    const __m256d zero = _mm256_cmp_pd(rd, _mm256_setzero_pd(), _CMP_EQ_OQ);
+    if (S.roEye[a] < 0 || S.roEye[a] > S.hiIdx[a]) miss = _mm256_or_pd(miss, zero);
+    const __m256d ta = _mm256_div_pd(_mm256_set1_pd(0 - S.roEye[a]), rd);
+    const __m256d tb = _mm256_div_pd(_mm256_set1_pd(S.hiIdx[a] - S.roEye[a]), rd);
+    const __m256d swap = _mm256_cmp_pd(ta, tb, _CMP_GT_OQ);
+    const __m256d lo = _mm256_blendv_pd(_mm256_blendv_pd(ta, tb, swap), ninf, zero);
+    const __m256d hi = _mm256_blendv_pd(_mm256_blendv_pd(tb, ta, swap), inf, zero);
+    t0 = _mm256_max_pd(lo, t0);  // std::max(t0, lo): lo only when t0 < lo
+    t1 = _mm256_min_pd(hi, t1);  // std::min(t1, hi): hi only when hi < t1
+  }
+  const int hit = _mm256_movemask_pd(_mm256_andnot_pd(miss, _mm256_cmp_pd(t0, t1, _CMP_LE_OQ)));
+  alignas(32) double t0s[4], kx[4];
+  _mm256_store_pd(t0s, t0);
+  _mm256_store_pd(kx, _mm256_floor_pd(_mm256_div_pd(_mm256_sub_pd(t1, t0), _mm256_set1_pd(S.dt))));
+  for (int l = 0; l < 4; ++l) {
+    for (int a = 0; a < 3; ++a) {
+      r[l].d[a] = dd[a][l];
+      r[l].rd[a] = rdd[a][l];
+    }
+    r[l].t0 = t0s[l];
+    r[l].hit = (hit >> l) & 1;
+    r[l].kEnd = !r[l].hit ? 0 : kx[l] > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx[l]);
+  }
+}
+#endif
+
 template <typename R, typename Fetch, bool Skip, bool Shade>
 void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, const VolumeCamera& cam, int w, int h,
                 double aspect, int threads, float* rgba, uint64_t& samples, uint64_t& skips,
@@ -1028,9 +1310,12 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   // nx, ny; a perspective ray's direction terms right * (nx th aspect), up * (ny th); its origin.
   std::vector<double> nxs(static_cast<size_t>(w)), nys(static_cast<size_t>(h));
   std::vector<Vec3> rightX(static_cast<size_t>(w)), upY(static_cast<size_t>(h));
+  std::vector<double> rightXa[3];  // the same per axis, padded by 3 columns for setupRays4
+  for (int a = 0; a < 3; ++a) rightXa[a].assign(size_t(w) + 3, 0.0);
   for (int x = 0; x < w; ++x) {
     nxs[size_t(x)] = 2.0 * (x + 0.5) / w - 1.0;
     rightX[size_t(x)] = right * (nxs[size_t(x)] * th * aspect);
+    for (int a = 0; a < 3; ++a) rightXa[a][size_t(x)] = rightX[size_t(x)][a];
   }
   for (int y = 0; y < h; ++y) {
     nys[size_t(y)] = 2.0 * (y + 0.5) / h - 1.0;
@@ -1038,55 +1323,96 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
   }
   double roEye[3];
   for (int a = 0; a < 3; ++a) roEye[a] = (pos[a] - geo.origin[a]) / geo.spacing[a];
+  RaySetupFrame S0;
+  for (int a = 0; a < 3; ++a) {
+    S0.fwd[a] = fwd[a];
+    S0.spacing[a] = geo.spacing[a];
+    S0.roEye[a] = roEye[a];
+    S0.hiIdx[a] = hiIdx[a];
+    S0.rightX[a] = rightXa[a].data();
+  }
+  S0.dt = F.dt;
+#if MT_VOLUME_AVX2
+  const bool setup4 = F.setup4 && !cam.parallel;
+#else
+  const bool setup4 = false;
+#endif
   constexpr int TILE = 8;
+  static_assert(TILE * TILE <= PendingRayList::CAPACITY, "a tile's rays must fit the queue");
   const int tx = (w + TILE - 1) / TILE, ty = (h + TILE - 1) / TILE;
   uint64_t sTotal = 0, kTotal = 0, rTotal = 0;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : sTotal, kTotal, rTotal)
   for (int tile = 0; tile < tx * ty; ++tile) {
     const int x0 = (tile % tx) * TILE, y0 = (tile / tx) * TILE;
     const int x1 = std::min(w, x0 + TILE), y1 = std::min(h, y0 + TILE);
-    for (int y = y0; y < y1; ++y)
-      for (int x = x0; x < x1; ++x) {
-        float* out = rgba + (size_t(y) * w + x) * 4;
-        if (x < hit.x0 || x > hit.x1 || y < hit.y0 || y > hit.y1) {  // misses the box: left 0
+    RaySetupFrame S = S0;
+    PendingRayList pending;  // this tile's rays for marchApronAvx2Pair (at most TILE^2 = 64)
+    for (int y = y0; y < y1; ++y) {
+      for (int a = 0; a < 3; ++a) S.upY[a] = upY[size_t(y)][a];
+      const bool rowHit = y >= hit.y0 && y <= hit.y1;
+      for (int xg = x0; xg < x1; xg += 4) {
+        PixelRay group[4];
+        const bool grouped = setup4 && rowHit && xg + 3 >= hit.x0 && xg <= hit.x1;
+#if MT_VOLUME_AVX2
+        if (grouped) setupRays4(S, xg, group);
+#endif
+        for (int x = xg; x < std::min(x1, xg + 4); ++x) {
+          float* out = rgba + (size_t(y) * w + x) * 4;
           ++rTotal;
-          out[0] = out[1] = out[2] = out[3] = 0.f;
-          continue;
-        }
-        const double nx = nxs[size_t(x)], ny = nys[size_t(y)];
-        Vec3 o, d;
-        if (cam.parallel) {
-          o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
-          d = fwd;
-        } else {
-          o = pos;
-          d = normalized(fwd + rightX[size_t(x)] + upY[size_t(y)]);
-        }
-        double ro[3], rd[3];
-        double t0 = 0, t1 = std::numeric_limits<double>::infinity();
-        bool miss = false;
-        for (int a = 0; a < 3; ++a) {
-          ro[a] = cam.parallel ? (o[a] - geo.origin[a]) / geo.spacing[a] : roEye[a];
-          rd[a] = d[a] / geo.spacing[a];
-          if (rd[a] == 0) {
-            if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
+          if (!rowHit || x < hit.x0 || x > hit.x1) {  // misses the box: left 0
+            out[0] = out[1] = out[2] = out[3] = 0.f;
             continue;
           }
-          double ta = (0 - ro[a]) / rd[a], tb = (hiIdx[a] - ro[a]) / rd[a];
-          if (ta > tb) std::swap(ta, tb);
-          t0 = std::max(t0, ta);
-          t1 = std::min(t1, tb);
+          double ro[3];
+          PixelRay r;
+          if (cam.parallel) {
+            const double nx = nxs[size_t(x)], ny = nys[size_t(y)];
+            const Vec3 o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
+            double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+            bool miss = false;
+            for (int a = 0; a < 3; ++a) {
+              r.d[a] = fwd[a];
+              ro[a] = (o[a] - geo.origin[a]) / geo.spacing[a];
+              r.rd[a] = fwd[a] / geo.spacing[a];
+              if (r.rd[a] == 0) {
+                if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
+                continue;
+              }
+              double ta = (0 - ro[a]) / r.rd[a], tb = (hiIdx[a] - ro[a]) / r.rd[a];
+              if (ta > tb) std::swap(ta, tb);
+              t0 = std::max(t0, ta);
+              t1 = std::min(t1, tb);
+            }
+            r.t0 = t0;
+            r.hit = !miss && t0 <= t1;
+            if (r.hit) {
+              const double kx = std::floor((t1 - t0) / F.dt);
+              r.kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
+            }
+          } else {
+            for (int a = 0; a < 3; ++a) ro[a] = roEye[a];
+            r = grouped ? group[x - xg] : setupRay(S, x);
+          }
+          if (!r.hit) {
+            out[0] = out[1] = out[2] = out[3] = 0.f;
+            continue;
+          }
+          if (pairable<R, Shade>(F, fetch, r.kEnd)) {
+            PendingRay& q = pending.rays[pending.count++];
+            for (int a = 0; a < 3; ++a) {
+              q.ro[a] = ro[a];
+              q.rd[a] = r.rd[a];
+            }
+            q.t0 = r.t0;
+            q.kEnd = r.kEnd;
+            q.out = out;
+            continue;
+          }
+          marchRay<R, Skip, Shade>(F, fetch, ro, r.rd, r.t0, r.kEnd, r.d, out, sTotal, kTotal);
         }
-        ++rTotal;
-        if (miss || !(t0 <= t1)) {
-          out[0] = out[1] = out[2] = out[3] = 0.f;
-          continue;
-        }
-        const double kx = std::floor((t1 - t0) / F.dt);
-        const int64_t kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
-        const double viewDir[3] = {d.x, d.y, d.z};  // the headlight: along the ray
-        marchRay<R, Skip, Shade>(F, fetch, ro, rd, t0, kEnd, viewDir, out, sTotal, kTotal);
       }
+    }
+    if (pending.count) marchPending<R, Skip, Shade>(F, fetch, pending, sTotal, kTotal);
   }
   samples += sTotal;
   skips += kTotal;
@@ -1229,6 +1555,7 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   // * 16 + word) with 32-bit integers.
   const bool indexable = uint64_t(vol.stats().bricksStored + 1) * BlockSparseVolume::BRICK_VOLUME < (uint64_t(1) << 31) &&
                          uint64_t(vol.stats().bricks) * 2 * DIM < (uint64_t(1) << 31);
+  F.setup4 = opt.vectorized && !forceSse2 && cpuHasAvx2();
   F.lanes = apron && !opt.doublePrecision && !opt.shade && indexable && opt.vectorized && !forceSse2 && cpuHasAvx2() ? 8 : 1;
   // The bricks the AVX2 marcher may march through: the stored ones, but with skipping only the
   // visible ones (all bricks are stored when the volume was built dense).

@@ -5,8 +5,12 @@
 // and the hard ones — segments through cell vertices, along cell edges, lying in a face's plane,
 // starting on a face — at tolerances 0, 1e-9 and 1e-4 of the grid's diagonal; and on extreme
 // coordinates (1e12 offset, 1e-12 scale), flat tetrahedra, zero-length and non-finite segments.
-// And tetraFirstHitIfCertain: whenever it answers, VTK's vtkTetra::IntersectWithLine at tol 0
-// reports a hit at the same t (1e-9), and it answers for most hits on the tetrahedral grids.
+// And tetraFirstHitIfCertain / convexFirstHitIfCertain (firstHitIfCertain): whenever it answers,
+// VTK's own IntersectWithLine of the cell (vtkTetra, vtkHexahedron, vtkWedge, vtkPyramid) at
+// tol 0 reports a hit at the same t (1e-9), and it answers for most hits on the tetrahedral
+// grids and the brick's hexahedra and prisms; single hexahedra, wedges and pyramids (axis-aligned,
+// sheared, warped, tangled) at extreme coordinates, with segments through their vertices, along
+// edges and through their quads' diagonals, check the same.
 // The filter must also earn its keep: on the grids it rejects most of the cells whose bounding
 // box the segment crosses (a count, not a timing).
 #include <gtest/gtest.h>
@@ -21,6 +25,7 @@
 #include <vtkSmartPointer.h>
 #include <vtkUnstructuredGrid.h>
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -53,6 +58,7 @@ mtree::CellSet toCellSet(vtkDataSet* ds) {
 struct Tally {
   long long boxHits = 0, rejected = 0, trueHits = 0;  // trueHits: kept, and hit by VTK
   long long tetHits = 0, certain = 0;  // tetrahedra hit by VTK at tol 0; of those decided by tetraFirstHitIfCertain
+  long long polyHits = 0, polyCertain = 0;  // the same for hexahedra, wedges and pyramids (convexFirstHitIfCertain)
   long long misses() const { return boxHits - trueHits; }
 };
 
@@ -76,15 +82,30 @@ void checkSegment(vtkDataSet* ds, const mtree::CellSet& cells, const double p1[3
     double q1[3] = {p1[0], p1[1], p1[2]}, q2[3] = {p2[0], p2[1], p2[2]};
     const bool hit = cell->IntersectWithLine(q1, q2, tol, t, x, pc, sub) != 0;
     double tc = 0;
-    const bool certain = mtree::tetraFirstHitIfCertain(frame, cells, c, tc);
-    if (tol == 0 && cells.type(c) == mtree::kTetra && hit) ++tally.tetHits;
+    const bool certain = mtree::firstHitIfCertain(frame, cells, c, tc);
+    const bool isTet = cells.type(c) == mtree::kTetra;
+    const bool isPoly = cells.type(c) >= mtree::kHexahedron && cells.type(c) <= mtree::kPyramid;
+    if (tol == 0 && isTet && hit) ++tally.tetHits;
+    if (tol == 0 && isPoly && hit) ++tally.polyHits;
     if (certain) {
       // A certain hit must be VTK's: a hit, at the same t.
-      ++tally.certain;
-      ASSERT_TRUE(hit) << "certain hit of tet " << c << " at t=" << tc << " is not hit by VTK";
-      ASSERT_NEAR(t, tc, 1e-9 * std::max(1.0, std::fabs(t))) << "tet " << c;
+      ++(isTet ? tally.certain : tally.polyCertain);
+      ASSERT_TRUE(isTet || isPoly) << "certain hit of cell " << c << " of type " << int(cells.type(c));
+      ASSERT_TRUE(hit) << "certain hit of cell " << c << " (type " << int(cells.type(c)) << ") at t=" << tc
+                       << " is not hit by VTK";
+      ASSERT_NEAR(t, tc, 1e-9 * std::max(1.0, std::fabs(t))) << "cell " << c << " type " << int(cells.type(c));
     }
     const bool may = mtree::segmentMayHitCell(frame, cells, c, tMax);
+    // The locator's one-pass decision gives the same answers as the two calls.
+    double td = -1;
+    const mtree::CellVerdict verdict = mtree::decideCell(frame, cells, c, tMax, true, td);
+    ASSERT_EQ(verdict == mtree::CellVerdict::kMiss, !may) << "cell " << c;
+    if (may) {
+      ASSERT_EQ(verdict == mtree::CellVerdict::kCertain, certain) << "cell " << c;
+      if (certain) {
+        ASSERT_EQ(td, tc) << "cell " << c;
+      }
+    }
     if (certain && tc < tMax * (1 - 1e-9)) {
       ASSERT_TRUE(may) << "a certain hit before tMax was rejected: tet " << c;
     }
@@ -96,6 +117,34 @@ void checkSegment(vtkDataSet* ds, const mtree::CellSet& cells, const double p1[3
     ASSERT_FALSE(hit && t <= tMax) << "rejected cell " << c << " (type " << int(cells.type(c)) << ") is hit by VTK at t="
                                    << t << " <= tMax=" << tMax << ", tol=" << tol << ", segment (" << p1[0] << ","
                                    << p1[1] << "," << p1[2] << ")->(" << p2[0] << "," << p2[1] << "," << p2[2] << ")";
+  }
+}
+
+/// Segments through the diagonals of a random cell's quad faces: where VTK's split of the quad
+/// into two triangles decides, a certain hit must not be claimed unless VTK agrees.
+void diagonalSegments(vtkDataSet* ds, const mtree::CellSet& cells, int count, std::mt19937_64& rng,
+                      vtkGenericCell* cell, Tally& tally) {
+  std::uniform_real_distribution<double> U(0, 1);
+  for (int i = 0; i < count; ++i) {
+    const size_t c = static_cast<size_t>(U(rng) * cells.size()) % cells.size();
+    const mtree::CellTopology* topo = mtree::cellTopology(cells.type(c));
+    if (!topo || cells.numCellPoints(c) != topo->numPoints) continue;
+    int f = static_cast<int>(U(rng) * topo->numFaces) % topo->numFaces;
+    if (topo->faceSize[f] != 4) continue;
+    const int* v = topo->face[f];
+    const int k = i % 2;
+    const mtree::Vec3 a = cells.cellPoint(c, v[k]), b = cells.cellPoint(c, v[k + 2]);
+    const double s = (i % 3 == 0) ? 0.5 : U(rng);
+    const mtree::Vec3 x = a + (b - a) * s;  // on the diagonal
+    mtree::Vec3 cen(0, 0, 0);
+    for (int j = 0; j < topo->numPoints; ++j) cen = cen + cells.cellPoint(c, j);
+    cen = cen * (1.0 / topo->numPoints);
+    // From the cell's centroid (inside: the hit is the exit through x) or from outside towards it.
+    const mtree::Vec3 from = (i % 4 < 2) ? cen : x + (x - cen) * 1.5;
+    const mtree::Vec3 to = (i % 4 < 2) ? x + (x - cen) * 0.5 : cen;
+    const double p1[3] = {from.x, from.y, from.z}, p2[3] = {to.x, to.y, to.z};
+    checkSegment(ds, cells, p1, p2, 0.0, 1.0, cell, tally);
+    if (::testing::Test::HasFatalFailure()) return;
   }
 }
 
@@ -160,11 +209,13 @@ void runDataset(vtkDataSet* ds, int nRandom, int nHard, Tally& tally) {
     checkSegment(ds, cells, p1, p2, tols[(i / 4) % 3], (i % 3) ? 1.0 : 0.5, cell, tally);
     if (::testing::Test::HasFatalFailure()) return;
   }
+  diagonalSegments(ds, cells, nHard / 2, rng, cell, tally);
 }
 
 struct GridCase {
   const char* path;
   double minRejectedFraction;  // of the candidates VTK misses
+  double polyCertainFraction = 0;  // of the hexahedra/wedges/pyramids hit at tol 0
 };
 
 class SegmentFilterGrid : public ::testing::TestWithParam<GridCase> {};
@@ -178,12 +229,17 @@ TEST_P(SegmentFilterGrid, RejectionsAgreeWithVtk) {
   runDataset(g, big ? 90 : 300, big ? 120 : 400, tally);
   if (HasFatalFailure()) return;
   std::printf("%s: %lld box candidates, %lld VTK misses at t <= tMax, %lld rejected; %lld tets hit at tol 0, %lld of "
-              "them certain without VTK\n",
-              gc.path, tally.boxHits, tally.misses(), tally.rejected, tally.tetHits, tally.certain);
+              "them certain without VTK; %lld hexahedra/wedges/pyramids hit, %lld certain\n",
+              gc.path, tally.boxHits, tally.misses(), tally.rejected, tally.tetHits, tally.certain, tally.polyHits,
+              tally.polyCertain);
   // On the tetrahedral grids a good share of the hits is decided without VTK, even with two
   // thirds of these segments made to pass through vertices and along edges.
   if (tally.tetHits > 100) {
     EXPECT_GT(tally.certain, 0.25 * tally.tetHits);
+  }
+  // The brick's hexahedra and prisms have planar faces: most of their hits are certain too.
+  if (tally.polyHits > 100 && gc.polyCertainFraction > 0) {
+    EXPECT_GT(tally.polyCertain, gc.polyCertainFraction * tally.polyHits);
   }
   ASSERT_GT(tally.boxHits, 1000);
   // Worth calling: on tetrahedra most of the candidates VTK would miss are proved missed. The
@@ -194,7 +250,7 @@ TEST_P(SegmentFilterGrid, RejectionsAgreeWithVtk) {
 
 INSTANTIATE_TEST_SUITE_P(Grids, SegmentFilterGrid,
                          ::testing::Values(GridCase{"cfd/brick_tets.su2", 0.85}, GridCase{"cfd/brick_pyra.su2", 0.85},
-                                           GridCase{"cfd/brick_hex.su2", 0.5}, GridCase{"cfd/brick_prism.su2", 0.4},
+                                           GridCase{"cfd/brick_hex.su2", 0.5, 0.25}, GridCase{"cfd/brick_prism.su2", 0.4, 0.25},
                                            GridCase{"cfd/pipe_flow_tets.vtu", 0.85}),
                          [](const ::testing::TestParamInfo<GridCase>& info) {
                            std::string name = info.param.path;
@@ -259,6 +315,75 @@ TEST(SegmentFilter, ExtremeCoordinates) {
       if (HasFatalFailure()) return;
       EXPECT_GT(tally.rejected, 100) << "scale " << s << " offset " << off;
     }
+}
+
+/// One hexahedron, wedge or pyramid (VTK type and point order) scaled by s and moved by off,
+/// against VTK's own cell on random segments, segments through its vertices and from inside,
+/// and segments through its quads' diagonals.
+void checkScaledCell(int type, const std::vector<std::array<double, 3>>& v, double s, double off, Tally& tally) {
+  vtkNew<vtkUnstructuredGrid> g;
+  vtkNew<vtkPoints> pts;
+  pts->SetDataTypeToDouble();
+  for (const auto& p : v) pts->InsertNextPoint(off + s * p[0], off + s * p[1], off + s * p[2]);
+  g->SetPoints(pts);
+  std::vector<vtkIdType> ids(v.size());
+  for (size_t k = 0; k < v.size(); ++k) ids[k] = static_cast<vtkIdType>(k);
+  g->InsertNextCell(type, static_cast<vtkIdType>(ids.size()), ids.data());
+  const mtree::CellSet cells = toCellSet(g);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> U(-0.5, 1.5);
+  vtkNew<vtkGenericCell> cell;
+  for (int i = 0; i < 3000; ++i) {
+    double p1[3], p2[3];
+    for (int a = 0; a < 3; ++a) {
+      p1[a] = off + s * U(rng);
+      p2[a] = off + s * U(rng);
+    }
+    if (i % 5 == 0)  // through a vertex
+      for (int a = 0; a < 3; ++a) p2[a] = 2 * (off + s * v[i % v.size()][a]) - p1[a];
+    if (i % 7 == 0)  // from inside (near the centroid)
+      for (int a = 0; a < 3; ++a) {
+        double cen = 0;
+        for (const auto& p : v) cen += p[a];
+        p1[a] = off + s * (cen / v.size() + 0.05 * (U(rng) - 0.5));
+      }
+    const double tol = (i % 4 == 3) ? 1e-9 * s : 0.0;
+    checkSegment(g, cells, p1, p2, tol, 1.0, cell, tally);
+    if (::testing::Test::HasFatalFailure()) return;
+  }
+  diagonalSegments(g, cells, 400, rng, cell, tally);
+}
+
+TEST(SegmentFilter, ConvexCellsCertainHitsAreVtks) {
+  using P = std::vector<std::array<double, 3>>;
+  const P cube = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  P sheared = cube, warped = cube, tangled = cube;
+  for (auto& p : sheared) p[0] += 0.3 * p[2], p[1] += 0.2 * p[2] + 0.1 * p[0];
+  warped[6][2] += 0.1;  // non-planar faces: VTK must decide
+  std::swap(tangled[6], tangled[7]);
+  const P wedge = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.1, 0, 1}, {1.1, 0, 1}, {0.1, 1, 1}};
+  const P pyramid = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.4, 0.5, 1}};
+  const struct {
+    const char* name;
+    int type;
+    const P* pts;
+    bool planar;
+  } cases[] = {{"cube", 12, &cube, true},          {"sheared", 12, &sheared, true}, {"warped", 12, &warped, false},
+               {"tangled", 12, &tangled, false},   {"wedge", 13, &wedge, true},     {"pyramid", 14, &pyramid, true}};
+  for (const auto& cs : cases)
+    for (double s : {1.0, 1e-12, 1e12})
+      for (double off : {0.0, 1e12, -3e6}) {
+        if (s == 1e-12 && off != 0.0) continue;
+        SCOPED_TRACE(std::string(cs.name) + " scale " + std::to_string(s) + " offset " + std::to_string(off));
+        Tally tally;
+        checkScaledCell(cs.type, *cs.pts, s, off * (s >= 1 ? 1 : s), tally);
+        if (HasFatalFailure()) return;
+        if (!cs.planar) {
+          EXPECT_EQ(tally.polyCertain, 0);
+        } else if (off == 0.0) {
+          EXPECT_GT(tally.polyCertain, 0.25 * tally.polyHits) << tally.polyHits;
+        }
+      }
 }
 
 TEST(SegmentFilter, DegenerateInputNeverRejects) {

@@ -1,5 +1,6 @@
-// The AVX2 marcher of UInt8/UInt16 apron bricks (engine/src/volume.cpp, marchApronAvx2) against the
-// SSE2 one it replaces at run time: the same image bit for bit (not merely within a tolerance: both
+// The AVX2 marcher of UInt8/UInt16 apron bricks (engine/src/volume.cpp, marchApronAvx2), and the
+// AVX2 set-up of 4 perspective rays at once (setupRays4), against the SSE2 marcher and the scalar
+// set-up they replace at run time (VolumeRenderOptions::vectorized = false takes both): the same image bit for bit (not merely within a tolerance: both
 // do the same float operations in the same order, none fused, and composite the samples one after
 // the other), the same samples and skipped nodes, on synthetic volumes (partial bricks, rays that
 // start inside, graze faces, miss, cross many bricks per step) and on real ones. Where the CPU has
@@ -133,6 +134,12 @@ void checkSynthetic(VoxelStorage expected, double top) {
       lookAt({-5, 0, 0}, {30, 0, 0}, 12, 12, 20),          // centre ray along the edge y = z = 0
       lookAt({18, 14, 60}, {18, 14, 80}, 8, 8),            // looking away: every ray misses
       lookAt({-40, 70, 11}, {10, 70, 11}, 8, 8),           // passing beside the volume: misses
+      // Odd sizes: the middle row and column have direction components exactly 0 (rays parallel
+      // to a grid axis: no bound from it, or a miss when the eye is outside that slab), and rows
+      // whose last group of 4 set-up lanes runs past the image.
+      lookAt({-5, 14, 11}, {30, 14, 11}, 13, 11),          // along +x through the middle
+      lookAt({-5, 40, 11}, {30, 40, 11}, 13, 11, 70),      // along +x beside the slab 0 <= y <= 28
+      lookAt({-5, 0, 11}, {30, 0, 11}, 13, 11),            // along +x in the face plane y = 0 (0 / 0)
       faceGrazingCamera(n, 1, 1),                          // along +x on the faces y = 0, y = 28
       faceGrazingCamera(n, -2, 2)};                        // along -y on the faces z = 0, z = 22
   const double steps[] = {0.5, 0.37, 3.0};  // 3 voxels: one 8-sample chunk spans several bricks

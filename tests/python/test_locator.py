@@ -332,3 +332,101 @@ def test_build_sort_setting():
     loc.SetBuildSortToCounting()
     loc.BuildLocator()
     assert loc.GetBuildTime() > t0  # a setting: the next build is a rebuild
+
+
+def cell_bounds(ds):
+    """Per-cell (lo, hi) bounds of an unstructured grid, from its points and connectivity."""
+    cells = ds.GetCells()
+    off = vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
+    conn = vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
+    p = vtk_to_numpy(ds.GetPoints().GetData()).astype(float)[conn]
+    return np.minimum.reduceat(p, off[:-1], axis=0), np.maximum.reduceat(p, off[:-1], axis=0)
+
+
+def brute_first_hit(ds, lo, hi, p1, p2, tol, gc, pad):
+    """VTK's first hit of the segment over every cell whose bounds (grown by tol + pad) it
+    crosses: each cell's own vtkCell::IntersectWithLine, no locator. (hit, t)."""
+    d = p2 - p1
+    t0, t1 = np.zeros(len(lo)), np.ones(len(lo))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for a in range(3):
+            if d[a] == 0:
+                out = (p1[a] < lo[:, a] - tol - pad) | (p1[a] > hi[:, a] + tol + pad)
+                t1[out] = -1.0
+                continue
+            ta = (lo[:, a] - tol - pad - p1[a]) / d[a]
+            tb = (hi[:, a] + tol + pad - p1[a]) / d[a]
+            t0 = np.maximum(t0, np.minimum(ta, tb))
+            t1 = np.minimum(t1, np.maximum(ta, tb))
+    best = None
+    for c in np.nonzero(t0 <= t1)[0]:
+        ds.GetCell(int(c), gc)
+        t, x, pc, sub = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0)
+        if gc.IntersectWithLine(list(p1), list(p2), tol, t, x, pc, sub) and (best is None or float(t) < best):
+            best = float(t)
+    return best is not None, best
+
+
+@pytest.mark.parametrize("grid", GRIDS)
+def test_rays_equal_brute_force_vtk(grid):
+    """First hits at tol 0 (and some at tol > 0) equal the smallest t VTK reports over every
+    cell whose bounds the segment crosses — no locator in the reference. This guards the ray
+    queries' per-leaf test on the quantized boxes (a cell skipped in one leaf must be found in
+    the leaf where the segment hits it), so a third of the segments start at leaf corners and
+    run along leaf faces, edges and diagonals, where round-off decides which leaf holds a point;
+    the rest start inside the grid, outside it and at grid vertices."""
+    ds = matrixtree.read_grid(os.path.join(CFD, grid))
+    ours = build(vtkMatrixTreeLocator, ds)
+    lo, hi = cell_bounds(ds)
+    b = np.array(ds.GetBounds()).reshape(3, 2)
+    diag = float(np.linalg.norm(b[:, 1] - b[:, 0]))
+    rep = vtkPolyData()
+    ours.GenerateRepresentation(ours.GetTreeHeight(), rep)
+    corners = vtk_to_numpy(rep.GetPoints().GetData()).astype(float)
+    leaf = np.abs(corners[1] - corners[0]).max()  # a leaf's x extent (points 0, 1 differ in x)
+    pts = vtk_to_numpy(ds.GetPoints().GetData()).astype(float)
+    rng = np.random.default_rng(17)
+    gc, gc2 = vtkGenericCell(), vtkGenericCell()
+    n = 300 if ds.GetNumberOfCells() > 100000 else 700
+    hits = mismatches = 0
+    bad = []
+    for i in range(n):
+        kind = i % 6
+        u = rng.normal(size=3)
+        if kind == 0:
+            p1 = random_points(ds, 1, seed=int(rng.integers(1 << 30)), grow=0.0)[0]
+        elif kind == 1:
+            p1 = random_points(ds, 1, seed=int(rng.integers(1 << 30)), grow=0.2)[0]
+        elif kind == 2:
+            p1 = pts[rng.integers(len(pts))].copy()
+        else:
+            p1 = corners[rng.integers(len(corners))].copy()
+            if kind == 4:  # along a leaf face or edge: some direction components zero
+                u[rng.random(3) < 0.5] = 0.0
+                if not u.any():
+                    u[rng.integers(3)] = 1.0
+            elif kind == 5:  # along a face or space diagonal of the leaves
+                u = np.sign(rng.normal(size=3)) * (rng.random(3) < 0.7)
+                if not u.any():
+                    u[0] = 1.0
+        p2 = p1 + u / np.linalg.norm(u) * (0.05 * diag if kind < 3 else 2.5 * leaf)
+        tol = 0.0 if i % 5 else 1e-6 * diag
+        ok, t = brute_first_hit(ds, lo, hi, p1, p2, tol, gc, 1e-9 * diag)
+        to, x, pc, sub, cid = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0), reference(0)
+        oa = ours.IntersectWithLine(list(p1), list(p2), tol, to, x, pc, sub, cid, gc2)
+        hits += ok
+        if bool(oa) != ok or (ok and abs(float(to) - t) > 1e-9 * max(1.0, abs(t))):
+            mismatches += 1
+            bad.append((kind, tol, list(p1), list(p2), ok, t, oa, float(to)))
+            continue
+        if ok:  # the cell handed back is our cell, as GetCell gives it, and VTK hits it at our t
+            ds.GetCell(int(cid), gc)
+            assert gc2.GetCellType() == gc.GetCellType()
+            assert [gc2.GetPointId(k) for k in range(gc2.GetNumberOfPoints())] == \
+                [gc.GetPointId(k) for k in range(gc.GetNumberOfPoints())]
+            assert np.array_equal(vtk_to_numpy(gc2.GetPoints().GetData()), vtk_to_numpy(gc.GetPoints().GetData()))
+            tc = reference(0.0)
+            assert gc.IntersectWithLine(list(p1), list(p2), tol, tc, x, pc, sub)
+            assert float(tc) == float(to)
+    assert hits > n // 4
+    assert mismatches == 0, bad[:5]

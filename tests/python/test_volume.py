@@ -240,3 +240,26 @@ def test_filter_output_arrays_are_reused_only_when_nobody_holds_them():
     after = frame(c, cams[1])
     assert np.array_equal(vtk_to_numpy(held), before)
     assert not np.array_equal(vtk_to_numpy(after), before)
+
+
+def test_filter_8bit_output_is_the_float_image_rounded():
+    """The RGBA scalars (unsigned char) are the RGBAFloat image clamped to [0, 1], times 255, plus
+    0.5, truncated (in float): checked against that formula in numpy for every value, at a size
+    whose value count is not a multiple of the converter's 16-value steps (37 x 23 x 4)."""
+    im = matrixtree.read_volume(os.path.join(VOLUMES, "HeadMRVolume.mhd"))
+    ctf, otf = matrixtree.default_transfer_functions(im, max_opacity=0.9)
+    c = vtkMatrixTreeVolumeRayCaster()
+    c.SetInputData(im)
+    c.SetColorTransferFunction(ctf)
+    c.SetScalarOpacity(otf)
+    c.SetImageSize(37, 23)
+    c.SetCamera(matrixtree.frame_camera(im))
+    c.Update()
+    pd = c.GetOutput().GetPointData()
+    f = vtk_to_numpy(pd.GetArray("RGBAFloat")).astype(np.float32).ravel()
+    u = vtk_to_numpy(pd.GetArray("RGBA")).ravel()
+    v = np.minimum(np.float32(1), np.maximum(np.float32(0), f))
+    expected = (v * np.float32(255) + np.float32(0.5)).astype(np.uint8)
+    assert f.size == 37 * 23 * 4 and f.size % 16 != 0
+    assert np.array_equal(u, expected)
+    assert len(np.unique(u)) > 50  # many levels, not just 0 and 255

@@ -113,6 +113,17 @@ class CellSet {
   const float* cellBox(size_t c) const { return &box_[6 * c]; }
   /// A hint that cell c's bounds are read soon (the builder's gather over the leaves).
   void prefetch(size_t c) const { __builtin_prefetch(&box_[6 * c]); }
+  /// A hint that cell c's point ids are read soon (the ray queries' candidates, known ahead).
+  void prefetchPointIds(size_t c) const { __builtin_prefetch(conn_.data() + firstPoint(c)); }
+  /// A hint that cell c's points are read soon: reads its point ids (prefetch them first).
+  void prefetchPoints(size_t c) const {
+    const uint32_t* id = cellPointIds(c);
+    const int64_t n = std::min<int64_t>(numCellPoints(c), kMaxLocalPoints);
+    for (int64_t k = 0; k < n; ++k) {
+      if (floatPoints_) __builtin_prefetch(&ptsF_[3 * size_t(id[k])]);
+      else __builtin_prefetch(&pts_[3 * size_t(id[k])]);
+    }
+  }
   /// Cached (conservative) bounds as a Box: what the tree build uses.
   Box bounds(size_t c) const {
     const float* f = cellBox(c);

@@ -64,12 +64,59 @@ struct SegmentFrame {
 /// Whether the cell's type lies inside the convex hull of its points (VTK's linear types).
 inline bool cellInsideHullOfPoints(uint8_t type) { return type >= kVertex && type <= kPyramid; }
 
+/// segmentMayHitCell for a tetrahedron, from its four points: the Cyrus-Beck test alone (the
+/// segment clipped against the four face planes pushed out by r, empty on [0, min(tMax, 1)]).
+/// For a tetrahedron it decides everything the ray-frame hull test would (that test is the
+/// projection of the same hull onto two axes and the segment's, grown by the same r), so the
+/// points are read and the frame's products computed only once. 0: a miss, 1: VTK must decide,
+/// -1: the tetrahedron is (nearly) flat, the planes decide nothing (the ray-frame test may).
+inline int tetraMayHit(const SegmentFrame& f, const Vec3 v[4], double tMax) {
+  if (!f.valid) return 1;
+  const Vec3 lo = vmin(vmin(v[0], v[1]), vmin(v[2], v[3])), hi = vmax(vmax(v[0], v[1]), vmax(v[2], v[3]));
+  const double vmag = std::max({std::fabs(lo.x), std::fabs(lo.y), std::fabs(lo.z), std::fabs(hi.x), std::fabs(hi.y),
+                                std::fabs(hi.z)});
+  const Vec3 ext = hi - lo;
+  const double emax = std::max({ext.x, ext.y, ext.z});
+  const double delta = 1e-3 * emax + 64 * std::numeric_limits<double>::epsilon() * std::max(vmag, f.mag);
+  const double r = 2 * f.tol + delta;
+  if (!(std::isfinite(r))) return 1;
+  static constexpr int kFace[4][4] = {{0, 1, 3, 2}, {1, 2, 3, 0}, {2, 0, 3, 1}, {0, 2, 1, 3}};  // 3 on the face, then the opposite
+  double tLo = 0, tHi = std::min(tMax, 1.0);
+  if (!(tLo <= tHi)) return 0;
+  for (const auto& fv : kFace) {
+    const Vec3 o = v[fv[0]];
+    Vec3 nrm = cross(v[fv[1]] - o, v[fv[2]] - o);
+    const double nn = norm(nrm);
+    const double side = dot(nrm, v[fv[3]] - o);
+    // A flat (or nearly flat) tetrahedron has no reliable inside.
+    if (!(std::fabs(side) > 1e-9 * nn * emax)) return -1;
+    if (side > 0) nrm = nrm * -1.0;  // outward
+    const double A = dot(nrm, f.p1 - o) - r * nn;  // <= 0: p1 inside the pushed-out plane
+    const double B = dot(nrm, f.d);
+    if (B == 0) {
+      if (A > 0) return 0;
+      continue;
+    }
+    const double t = -A / B;
+    if (B > 0) tHi = std::min(tHi, t);
+    else tLo = std::max(tLo, t);
+    if (tLo > tHi) return 0;
+  }
+  return 1;
+}
+
 /// False only if vtkCell::IntersectWithLine(p1, p2, tol, t, ...) on cell c cannot return a hit
 /// with t <= tMax (see the header comment). True means "ask VTK".
 inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax) {
   if (!f.valid || !cellInsideHullOfPoints(cells.type(c))) return true;
   const int64_t n = cells.numCellPoints(c);
   if (n <= 0) return true;
+  if (cells.type(c) == kTetra && n == 4) {
+    const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
+    const int verdict = tetraMayHit(f, v, tMax);
+    if (verdict >= 0) return verdict != 0;
+    // Flat: the ray-frame test below may still prove a miss (its face planes ask VTK).
+  }
   double amin = std::numeric_limits<double>::infinity(), amax = -amin;
   double bmin = amin, bmax = amax, smin = amin, smax = amax;
   Vec3 lo(amin, amin, amin), hi(amax, amax, amax);
@@ -161,10 +208,17 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
 /// this computation and of VTK's. Returns false when not certain (VTK must decide) or when the
 /// segment misses: misses are the rejection test's business. On true, t is the hit's parameter
 /// (equal to VTK's up to round-off).
+inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t);
 inline bool tetraFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
   if (!f.valid || f.tol != 0 || cells.type(c) != kTetra || cells.numCellPoints(c) != 4) return false;
-  const Vec3 v0 = cells.cellPoint(c, 0), v1 = cells.cellPoint(c, 1), v2 = cells.cellPoint(c, 2),
-             v3 = cells.cellPoint(c, 3);
+  const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
+  return tetraCertainHit(f, v, t);
+}
+
+/// tetraFirstHitIfCertain from the tetrahedron's four points (VTK's order).
+inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
+  if (!f.valid || f.tol != 0) return false;
+  const Vec3 v0 = v[0], v1 = v[1], v2 = v[2], v3 = v[3];
   const Vec3 a = v1 - v0, b = v2 - v0, e = v3 - v0;
   const Vec3 be = cross(b, e);
   const double det = dot(a, be);  // 6 x signed volume
@@ -223,6 +277,145 @@ inline bool tetraFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, 
     return true;
   }
   return false;  // no crossing in [0, 1]: a miss, left to the rejection test and VTK
+}
+
+/// The same for a hexahedron, wedge or pyramid whose faces are planar (to round-off) and which is
+/// convex: vtkHexahedron, vtkWedge and vtkPyramid report the smallest t in [0, 1] at which the
+/// segment crosses one of their faces, each face a triangle or a quad that vtkQuad splits into
+/// two triangles along one of its diagonals. With planar faces the line meets the convex cell's
+/// boundary only where it enters (te) and leaves (tx); the hit is te if 0 < te <= 1, else tx if
+/// te <= 0 < tx <= 1. It is certain when both crossings lie inside their faces by a margin (every
+/// other face plane at least m L away, L the cell's bounding-box diagonal), a quad face's
+/// crossing is m L away from both its diagonals (so whichever split VTK picks, one triangle
+/// holds it well inside and the other well outside), neither crossing is near an end of the
+/// segment, and the cell is not flat. m is tetraFirstHitIfCertain's margin. A warped face, a
+/// non-convex or degenerate cell, and a segment that misses: false (VTK decides).
+inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+  if (!f.valid || f.tol != 0) return false;
+  const uint8_t type = cells.type(c);
+  if (type != kHexahedron && type != kWedge && type != kPyramid) return false;
+  const CellTopology* topo = cellTopology(type);
+  if (!topo || cells.numCellPoints(c) != topo->numPoints) return false;
+  const int n = topo->numPoints;
+  Vec3 p[CellSet::kMaxLocalPoints];
+  Vec3 lo(std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+          std::numeric_limits<double>::infinity());
+  Vec3 hi = lo * -1.0;
+  double vmag = 0;
+  for (int k = 0; k < n; ++k) {
+    p[k] = cells.cellPoint(c, k);
+    lo = vmin(lo, p[k]);
+    hi = vmax(hi, p[k]);
+    vmag = std::max({vmag, std::fabs(p[k].x), std::fabs(p[k].y), std::fabs(p[k].z)});
+  }
+  const double L = norm(hi - lo);
+  if (!(L > 0) || !std::isfinite(L)) return false;
+  constexpr double eps = std::numeric_limits<double>::epsilon();
+  const double mag = std::max(f.mag, vmag);
+  // As in tetraFirstHitIfCertain: VTK's t must not be able to reorder hits by more than 1e-9.
+  if (1024 * eps * mag * f.invLen > 1e-10) return false;
+  // Round-off of a point's distance to a face plane, in units of L.
+  const double planeEps = 64 * eps * mag / L;
+  const Vec3 r1 = f.p1 - lo;
+  const double far = (norm(r1) + norm(r1 + f.d)) / L;
+  const double m = 1e-6 + 1e-9 * far + 1024 * eps * mag / L;
+  // Each face: unit outward normal nu and a point o on it; l1 = -dot(nu, p1 - o) / L is how far
+  // inside the plane p1 lies (units of L), dl its change along d.
+  const double invL = 1.0 / L;
+  double l1[6], dl[6];
+  const int nf = topo->numFaces;
+  for (int i = 0; i < nf; ++i) {
+    const int* v = topo->face[i];
+    const bool quad = topo->faceSize[i] == 4;
+    Vec3 nrm = quad ? cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[1]]) : cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
+    const double nn2 = dot(nrm, nrm);
+    if (!(nn2 > 1e-12 * L * L * L * L)) return false;  // a degenerate face
+    // Unit normal scaled by 1 / L: dot products with it are distances in units of L.
+    nrm = nrm * (invL / std::sqrt(nn2));
+    const Vec3 o = p[v[0]];
+    // Planar (a quad's other points on the plane through v[0] to round-off; a triangle's are
+    // by construction) and convex (every other point of the cell on one side, the inner
+    // one); the topology's faces are wound outward, but a tangled cell may not be: the side
+    // is taken from the cell's points.
+    unsigned onFace = 0;
+    for (int j = 0; j < topo->faceSize[i]; ++j) onFace |= 1u << v[j];
+    if (quad)
+      for (int j = 1; j < 4; ++j)
+        if (!(std::fabs(dot(nrm, p[v[j]] - o)) <= planeEps)) return false;  // warped face
+    double inner = 0;
+    for (int k = 0; k < n; ++k) {
+      if ((onFace >> k) & 1) continue;
+      const double s = dot(nrm, p[k] - o);
+      if (!(std::fabs(s) > 1e-3)) return false;  // a point (nearly) on another face's plane: flat or odd
+      if (inner == 0) inner = s;
+      else if ((s > 0) != (inner > 0)) return false;  // points on both sides: not convex
+    }
+    if (inner > 0) nrm = nrm * -1.0;  // outward: the cell's points lie at negative distance
+    l1[i] = -dot(nrm, f.p1 - o);
+    dl[i] = -dot(nrm, f.d);
+  }
+  double te = -std::numeric_limits<double>::infinity(), tx = std::numeric_limits<double>::infinity();
+  int ie = -1, ix = -1;
+  for (int i = 0; i < nf; ++i) {
+    if (dl[i] == 0) {
+      if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
+      continue;
+    }
+    const double ti = -l1[i] / dl[i];
+    if (dl[i] > 0) {
+      if (ti > te) te = ti, ie = i;
+    } else if (ti < tx) {
+      tx = ti, ix = i;
+    }
+  }
+  if (ie < 0 || ix < 0 || !(te < tx)) return false;
+  for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
+    for (int j = 0; j < nf; ++j)
+      if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
+    if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
+    if (topo->faceSize[ic] == 4) {
+      // Away from both diagonals of the quad (in its plane: distance to the diagonal's line).
+      const int* v = topo->face[ic];
+      const Vec3 x = f.p1 + f.d * tc;
+      for (int k = 0; k < 2; ++k) {
+        const Vec3 a = p[v[k]], e = p[v[k + 2]] - a;
+        const Vec3 c = cross(e, x - a);  // |c| / |e|: the distance to the diagonal's line
+        if (!(dot(c, c) >= m * m * L * L * dot(e, e))) return false;
+      }
+    }
+  }
+  if (te > 0 && te <= 1) {
+    t = te;
+    return true;
+  }
+  if (te <= 0 && tx > 0 && tx <= 1) {
+    t = tx;
+    return true;
+  }
+  return false;
+}
+
+/// tetraFirstHitIfCertain or convexFirstHitIfCertain, by the cell's type.
+inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+  const uint8_t type = cells.type(c);
+  if (type == kTetra) return tetraFirstHitIfCertain(f, cells, c, t);
+  return convexFirstHitIfCertain(f, cells, c, t);
+}
+
+/// What the ray queries ask of a candidate: segmentMayHitCell (kMiss: VTK cannot hit it at
+/// t <= tMax) and then firstHitIfCertain (kCertain, with t), the points of a tetrahedron read
+/// once for both. kAskVtk otherwise. The same answers as the two calls in turn.
+enum class CellVerdict { kMiss, kAskVtk, kCertain };
+inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax, bool wantCertain,
+                              double& t) {
+  if (f.valid && cells.type(c) == kTetra && cells.numCellPoints(c) == 4) {
+    const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
+    const int verdict = tetraMayHit(f, v, tMax);
+    if (verdict == 0) return CellVerdict::kMiss;
+    if (verdict > 0) return wantCertain && tetraCertainHit(f, v, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
+  }
+  if (!segmentMayHitCell(f, cells, c, tMax)) return CellVerdict::kMiss;
+  return wantCertain && firstHitIfCertain(f, cells, c, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
 }
 
 }  // namespace mtree

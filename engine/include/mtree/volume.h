@@ -256,8 +256,9 @@ struct VolumeRenderOptions {
   double ambient = 0.2, diffuse = 0.7, specular = 0.2, specularPower = 10;
   int threads = 0;                   // 0 = OpenMP's default
   /// UInt8/UInt16 storage, float, unshaded: march 8 samples at a time with AVX2 where the CPU has
-  /// it (chosen at run time). false: the SSE2 marcher. Both give the same image bit for bit; the
-  /// environment variable MATRIXTREE_VOLUME_SIMD=sse2 also forces the SSE2 one.
+  /// it (chosen at run time); every storage: set perspective rays up 4 at a time with AVX2. false:
+  /// the SSE2 marcher and the scalar set-up. Both give the same image bit for bit; the environment
+  /// variable MATRIXTREE_VOLUME_SIMD=sse2 also forces the SSE2 ones.
   bool vectorized = true;
 };
 
