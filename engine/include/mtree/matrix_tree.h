@@ -11,6 +11,11 @@
 // A node exists iff some primitive overlaps it. All primitives are referenced at the bottom
 // level (height H); upper levels only record existence (1 byte per node). Existence is monotone
 // along any root-to-leaf path, which is what makes the O(log H) leaf search a binary search.
+//
+// The ray walk probes existence at every step, so the tree keeps two derived copies of it that
+// fit in cache (buildWalkCaches(), after every build): one bit per entry of each 8x8x8 leaf
+// block, and dense bits for the small upper levels. They answer the same questions as the
+// block-sparse levels, bit for bit (test_matrix_tree WalkCachesMirrorTheLevels).
 #pragma once
 
 #include <array>
