@@ -164,7 +164,11 @@ public:
   vtkIdType GetNumberOfTriangles() const;
   vtkIdType GetNumberOfLeaves() const;
   vtkIdType GetNumberOfReferences() const;
-  /** Bytes of the tree: every level's pointer matrix and blocks, plus the triangle indices. */
+  /**
+   * Bytes of the tree: every level's pointer matrix and blocks, the triangle indices, and the
+   * ray walk's caches (the leaf occupancy bits and the dense upper-level bits, a few percent).
+   * GetLevelMemorySize(level) is one level's pointer matrix and blocks alone.
+   */
   vtkIdType GetMemorySize() const;
   vtkIdType GetLevelMemorySize(int level) const;
   vtkIdType GetLevelNumberOfBlocks(int level) const;

@@ -123,13 +123,15 @@ inline bool mt_ray_triangle(mt_v3 o, mt_v3 d, mt_v3 a, mt_v3 b, mt_v3 c, double 
   const mt_v3 p = mt_cross(d, e2);
   const double det = mt_dot(e1, p);
   if (det == 0.0 || !isfinite(det)) return false;
-  const double inv = 1.0 / det;
+  /* The edge tests on the unscaled numerators, det's sign folded in; the division after them. */
+  const double sg = det > 0 ? 1.0 : -1.0, adet = det * sg;
   const mt_v3 s = mt_sub(o, a);
-  const double uu = mt_dot(s, p) * inv;
-  if (!(uu >= 0.0 && uu <= 1.0)) return false;
+  const double un = mt_dot(s, p) * sg;
+  if (!(un >= 0.0 && un <= adet)) return false;
   const mt_v3 q = mt_cross(s, e1);
-  const double vv = mt_dot(d, q) * inv;
-  if (!(vv >= 0.0 && uu + vv <= 1.0)) return false;
+  const double vn = mt_dot(d, q) * sg;
+  if (!(vn >= 0.0 && un + vn <= adet)) return false;
+  const double inv = 1.0 / det;
   const double tt = mt_dot(e2, q) * inv;
   if (!(tt >= tmin && tt <= tmax)) return false;
   *t = tt;

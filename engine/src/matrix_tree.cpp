@@ -57,8 +57,66 @@ int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double lea
   return h;
 }
 
+void MatrixTree::buildWalkCaches(int threads) {
+  leafMask_.clear();
+  levelBits_.clear();
+  denseLevels_ = 0;
+  if (empty_) return;
+  // Dense bits of the upper levels, from the root down while they stay no larger than the
+  // level's block-sparse bytes (levels only grow going down).
+  size_t words = 0;
+  for (int l = 0; l < height_; ++l) {
+    const int sum = logDims_[l][0] + logDims_[l][1] + logDims_[l][2];
+    if (sum > 30) break;
+    const uint64_t bits = uint64_t(1) << sum;
+    if (bits / 8 > inner_[l].bytes()) break;
+    dense_[l].offset = words;
+    dense_[l].lx = logDims_[l][0];
+    dense_[l].ly = logDims_[l][1];
+    words += static_cast<size_t>((bits + 63) / 64);
+    denseLevels_ = l + 1;
+  }
+  levelBits_.assign(words, 0);
+  for (int l = 0; l < denseLevels_; ++l) {
+    const BlockSparseMatrix<uint8_t>& m = inner_[l];
+    const uint8_t* v = m.data().data();
+    const int64_t ne = static_cast<int64_t>(m.data().size());
+    for (int64_t e = 0; e < ne; ++e) {
+      if (!v[e]) continue;
+      int c[3];
+      m.entryCoords(static_cast<uint32_t>(e), c);
+      const uint64_t i = (((uint64_t(c[2]) << dense_[l].ly) | uint64_t(c[1])) << dense_[l].lx) | uint64_t(c[0]);
+      levelBits_[dense_[l].offset + (i >> 6)] |= uint64_t(1) << (i & 63);
+    }
+  }
+  const MtSparseDesc& d = leaves_.desc();
+  if (d.logBlock[0] != 3 || d.logBlock[1] != 3 || d.logBlock[2] != 3) return;
+  // The sibling pattern of the last split: the axes that split between level H-1 and H.
+  const int H = height_;
+  int split[3] = {0, 0, 0};
+  if (H > 0)
+    for (int a = 0; a < 3; ++a) split[a] = logDims_[H][a] - logDims_[H - 1][a];
+  const uint64_t xBits = split[0] ? 0x3u : 0x1u;
+  siblingBits_ = split[1] ? (xBits | (xBits << 8)) : xBits;
+  siblingZ_ = split[2] != 0;
+  for (int a = 0; a < 3; ++a) siblingLow_[a] = split[a] ? ~1 : ~0;
+  const int64_t nb = leaves_.numBlocks();
+  leafMask_.assign(static_cast<size_t>(nb) * 8, 0);
+  const MtLeafRange* data = leaves_.data().data();
+  uint64_t* out = leafMask_.data();
+#pragma omp parallel for num_threads(resolveThreads(threads)) schedule(static) if (nb > 256)
+  for (int64_t b = 0; b < nb; ++b) {
+    const MtLeafRange* r = data + b * 512;
+    for (int z = 0; z < 8; ++z) {
+      uint64_t w = 0;
+      for (int k = 0; k < 64; ++k) w |= uint64_t(r[z * 64 + k].begin != MT_NULL) << k;
+      out[b * 8 + z] = w;
+    }
+  }
+}
+
 size_t MatrixTree::bytes() const {
-  size_t b = prims_.size() * sizeof(uint32_t) + leaves_.bytes();
+  size_t b = prims_.size() * sizeof(uint32_t) + leaves_.bytes() + walkCacheBytes();
   for (const auto& m : inner_) b += m.bytes();
   return b;
 }

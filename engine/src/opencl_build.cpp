@@ -133,6 +133,7 @@ void Builder::build(const TriangleMesh& mesh, const BuildOptions& opt, MatrixTre
 
   // A build that throws leaves an empty tree.
   Access::empty(tree) = true;
+  tree.buildWalkCaches(0);  // clears them: an empty tree has none
   Access::prims(tree).clear();
   Access::root(tree) = Box{};
   Access::invLeaf(tree) = Vec3();
@@ -362,6 +363,8 @@ void Builder::build(const TriangleMesh& mesh, const BuildOptions& opt, MatrixTre
   Access::empty(tree) = false;
   if (stats) stats->references = numPairs;
   clock.lap("download");
+  tree.buildWalkCaches(0);
+  clock.lap("walk caches");
   clock.finish();
 }
 

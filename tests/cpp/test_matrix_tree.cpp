@@ -388,6 +388,57 @@ TEST_P(RealMeshTree, DeterministicAcrossThreadCounts) {
   EXPECT_TRUE(tree_.primitiveIndices() == r.primitiveIndices());
 }
 
+// The ray walk's caches are copies of the levels: every bit of the dense upper levels equals
+// the block-sparse existence byte (all nodes of those levels, present or not), and every leaf
+// occupancy bit equals `range.begin != MT_NULL` (every entry of every allocated leaf block).
+// Both caches must be in use on these meshes (8^3 leaf blocks, small upper levels), or the walk's
+// fast paths would go untested; a rebuild with a different block edge drops the leaf masks.
+TEST_P(RealMeshTree, WalkCachesMirrorTheLevels) {
+  const MatrixTree& t = tree_;
+  const int H = t.height();
+  ASSERT_GT(t.denseLevels(), 0);
+  ASSERT_LE(t.denseLevels(), H);
+  uint64_t checked = 0, differ = 0;
+  for (int l = 0; l < t.denseLevels(); ++l) {
+    for (int z = 0; z < t.dim(l, 2); ++z)
+      for (int y = 0; y < t.dim(l, 1); ++y)
+        for (int x = 0; x < t.dim(l, 0); ++x) {
+          const int c[3] = {x, y, z};
+          const uint8_t* v = t.innerLevel(l).find(x, y, z);
+          differ += t.innerExists(l, c) != (v && *v);
+          ++checked;
+        }
+  }
+  EXPECT_EQ(differ, 0u) << "dense level bits differ from the block-sparse levels (" << checked << " nodes)";
+  // Below the dense levels innerExists reads the levels themselves: spot-check it there too.
+  for (int l = t.denseLevels(); l < H; ++l)
+    forEachAllocated(t.innerLevel(l), [&](const int c[3]) {
+      differ += t.innerExists(l, c) != t.nodeExists(l, c);
+    });
+  EXPECT_EQ(differ, 0u);
+
+  const auto& leaves = t.leafLevel();
+  const std::vector<uint64_t>& masks = t.leafMasks();
+  ASSERT_EQ(masks.size(), size_t(leaves.numBlocks()) * 8) << "one 512-bit mask per 8x8x8 leaf block";
+  uint64_t leafBits = 0, leafDiffer = 0;
+  forEachAllocated(leaves, [&](const int c[3]) {
+    const uint32_t b = leaves.pointers()[leaves.pointerIndex(c[0], c[1], c[2])];
+    const bool bit = (masks[size_t(b) * 8 + (c[2] & 7)] >> (8 * (c[1] & 7) + (c[0] & 7))) & 1u;
+    leafDiffer += bit != (leaves.get(c[0], c[1], c[2]).begin != MT_NULL);
+    leafBits += bit;
+  });
+  EXPECT_EQ(leafDiffer, 0u) << "leaf occupancy bits differ from the leaf ranges";
+  EXPECT_EQ(leafBits, t.numLeaves());
+  EXPECT_EQ(t.bytes() - t.walkCacheBytes(), [&] {
+    size_t b = t.primitiveIndices().size() * sizeof(uint32_t);
+    for (int l = 0; l <= H; ++l) b += t.levelBytes(l);
+    return b;
+  }()) << "bytes() must count the caches on top of the levels";
+
+  const MatrixTree other = mtest::buildTree(mesh_, mtest::options(kind_, H, 4));
+  EXPECT_TRUE(other.leafMasks().empty()) << "4x4x4 leaf blocks: no masks (the walk reads the ranges)";
+}
+
 // BoundingBox mode references every leaf its box touches: a superset of Exact, leaf by leaf.
 TEST_P(RealMeshTree, BoundingBoxModeIsASupersetOfExact) {
   mtree::BuildOptions opt = mtest::options(kind_);

@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -196,5 +197,101 @@ INSTANTIATE_TEST_SUITE_P(RealMeshes, RealMeshRays, ::testing::ValuesIn(mtest::re
                          [](const ::testing::TestParamInfo<std::string>& info) {
                            return mtest::meshTag(info.param);
                          });
+
+// mtree::testTriangles (two Moller-Trumbore tests per SSE2 step) reports exactly what
+// rayTriangleMT reports one by one: the same triangles, and t, u, v equal bit for bit, for lists
+// of 0..9 triangles of a real mesh (pairs and a tail), rays aimed at a vertex, an edge midpoint
+// or a random point of a listed triangle (hits on edges and vertices), random rays, a ray in a
+// triangle's plane, a list holding one triangle twice, degenerate triangles (det = 0), a NaN
+// origin, coordinates scaled to 1e12 and to 1e-12, and narrowed [tmin, tmax].
+TEST(TriangleBatch, EqualsOneByOneMollerTrumbore) {
+  const mtree::TriangleMesh real = mtest::loadRealMesh("scenes/utah_hand/hand_00.obj");
+  for (const double scale : {1.0, 1e12, 1e-12}) {
+    SCOPED_TRACE("coordinates x " + std::to_string(scale));
+    std::vector<double> pts = real.points();
+    for (double& x : pts) x *= scale;
+    std::vector<uint32_t> tris = real.triangles();
+    // Degenerate triangles appended: a repeated vertex, and three collinear points.
+    const uint32_t nv = static_cast<uint32_t>(pts.size() / 3);
+    for (int k = 0; k < 3; ++k) pts.push_back(pts[k] + (pts[3 + k] - pts[k]) * 0.5);
+    tris.insert(tris.end(), {0, 0, 1, 0, nv, 1});
+    const mtree::TriangleMesh mesh(pts, tris);
+    const uint32_t nt = static_cast<uint32_t>(mesh.size());
+    mtest::Rng rng(mtest::seedFor("triangle-batch", static_cast<uint64_t>(std::log10(scale) + 20)));
+    const Box mb = mtest::meshBounds(mesh);
+    const double diag = mtree::norm(mb.extent());
+    uint64_t lists = 0, reported = 0, differ = 0;
+    std::string first;
+    for (int trial = 0; trial < 20000; ++trial) {
+      const uint32_t n = rng.below(10);
+      std::vector<uint32_t> ids(n);
+      for (uint32_t& id : ids) id = rng.below(nt);
+      if (n >= 2 && trial % 7 == 0) ids[n - 1] = ids[0];              // one triangle twice
+      if (n >= 1 && trial % 11 == 0) ids[rng.below(n)] = nt - 1 - rng.below(2);  // a degenerate one
+      Vec3 o = mb.center() + rng.direction() * (diag * rng.uniform(0.6, 2.0)), target = rng.inBox(mb);
+      if (n > 0) {
+        const uint32_t id = ids[rng.below(n)];
+        const Vec3 a = mesh.vertex(id, 0), b = mesh.vertex(id, 1), c = mesh.vertex(id, 2);
+        switch (trial % 5) {
+          case 0: target = a; break;                                    // a vertex
+          case 1: target = (b + c) * 0.5; break;                        // an edge midpoint
+          case 2: {                                                     // inside
+            const double u = rng.uniform(), v = rng.uniform() * (1 - u);
+            target = a + (b - a) * u + (c - a) * v;
+            break;
+          }
+          case 3:  // in the triangle's plane
+            o = a + (b - a) * 3.0;
+            target = a + (c - a) * 0.5;
+            break;
+          default: break;  // random
+        }
+      }
+      Vec3 d = target - o;
+      if (trial % 13 == 0) o.x = std::numeric_limits<double>::quiet_NaN();
+      double tmin = 0, tmax = std::numeric_limits<double>::infinity();
+      if (trial % 4 == 3) {
+        tmin = rng.uniform(0, 0.9);
+        tmax = tmin + rng.uniform(0, 0.3);
+      }
+      struct Hit {
+        uint32_t id;
+        double t, u, v;
+      };
+      std::vector<Hit> want, got;
+      for (uint32_t id : ids) {
+        double t, u, v;
+        if (mtree::rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax, t, u,
+                                 v))
+          want.push_back({id, t, u, v});
+      }
+      const bool stopped = mtree::testTriangles<mtree::TriangleTest::MollerTrumbore>(
+          mesh, o, d, ids.data(), n, tmin, tmax, [&](uint32_t id, double t, double u, double v) {
+            got.push_back({id, t, u, v});
+            return false;
+          });
+      ++lists;
+      reported += got.size();
+      bool same = !stopped && got.size() == want.size();
+      for (size_t k = 0; same && k < got.size(); ++k)
+        same = got[k].id == want[k].id && got[k].t == want[k].t && got[k].u == want[k].u && got[k].v == want[k].v;
+      if (!same && differ++ == 0)
+        first = "trial " + std::to_string(trial) + ": " + std::to_string(got.size()) + " reported, " +
+                std::to_string(want.size()) + " one by one";
+      // A true return from the callback stops the list at that triangle.
+      if (!want.empty()) {
+        uint32_t calls = 0;
+        EXPECT_TRUE(mtree::testTriangles<mtree::TriangleTest::MollerTrumbore>(
+            mesh, o, d, ids.data(), n, tmin, tmax, [&](uint32_t id, double, double, double) {
+              ++calls;
+              return id == want[0].id;
+            }));
+        EXPECT_EQ(calls, 1u);
+      }
+    }
+    EXPECT_EQ(differ, 0u) << first;
+    EXPECT_GT(reported, lists / 4) << "too few hits: the comparison would be weak";
+  }
+}
 
 }  // namespace

@@ -253,6 +253,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   tree.root_ = Box{};
   tree.invLeaf_ = Vec3();
   tree.empty_ = true;  // until the build completes: a build that throws leaves an empty tree
+  tree.buildWalkCaches(0);  // clears them until the build completes
   tree.kind_ = opt.kind;
   tree.blockEdge_ = opt.blockEdge;
   if (stats) stats->primitives = static_cast<uint64_t>(n);
@@ -638,6 +639,8 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   }
   tree.empty_ = false;
   clock.lap("propagate");
+  tree.buildWalkCaches(threads);
+  clock.lap("walk caches");
   if (stats) {
     stats->references = numPairs;
   }

@@ -122,14 +122,19 @@ MT_ALWAYS_INLINE bool rayTriangleMT(Vec3 o, Vec3 d, Vec3 a, Vec3 b, Vec3 c, doub
   const Vec3 p = cross(d, e2);
   const double det = dot(e1, p);
   if (det == 0.0 || !std::isfinite(det)) return false;
-  const double inv = 1.0 / det;
+  // The division waits until the edge tests pass (most candidates fail one): they compare the
+  // unscaled numerators with det's sign folded in, which is the same decision as comparing the
+  // quotients except within an ulp of an edge, where either answer is a correct hit or miss.
+  const double sg = det > 0 ? 1.0 : -1.0, adet = det * sg;
   const Vec3 s = o - a;
-  const double uu = dot(s, p) * inv;
+  const double un = dot(s, p) * sg;
   // Written as !(inside) so that NaN (e.g. from an infinite origin) is rejected too.
-  if (!(uu >= 0.0 && uu <= 1.0)) return false;
+  if (!(un >= 0.0 && un <= adet)) return false;
   const Vec3 q = cross(s, e1);
-  const double vv = dot(d, q) * inv;
-  if (!(vv >= 0.0 && uu + vv <= 1.0)) return false;
+  const double vn = dot(d, q) * sg;
+  if (!(vn >= 0.0 && un + vn <= adet)) return false;
+  const double inv = 1.0 / det;
+  const double uu = un * sg * inv, vv = vn * sg * inv;
   const double tt = dot(e2, q) * inv;
   if (!(tt >= tmin && tt <= tmax)) return false;
   t = tt;

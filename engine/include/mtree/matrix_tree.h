@@ -11,6 +11,11 @@
 // A node exists iff some primitive overlaps it. All primitives are referenced at the bottom
 // level (height H); upper levels only record existence (1 byte per node). Existence is monotone
 // along any root-to-leaf path, which is what makes the O(log H) leaf search a binary search.
+//
+// The ray walk probes existence at every step, so the tree keeps two derived copies of it that
+// fit in cache (buildWalkCaches(), after every build): one bit per entry of each 8x8x8 leaf
+// block, and dense bits for the small upper levels. They answer the same questions as the
+// block-sparse levels, bit for bit (test_matrix_tree WalkCachesMirrorTheLevels).
 #pragma once
 
 #include <array>
@@ -111,8 +116,36 @@ class MatrixTree {
   const BlockSparseMatrix<uint8_t>& innerLevel(int l) const { return inner_[l]; }
   const BlockSparseMatrix<MtLeafRange>& leafLevel() const { return leaves_; }
   const std::vector<uint32_t>& primitiveIndices() const { return prims_; }
-  /// Bytes of level l (pointer matrix + allocated blocks).
-  size_t levelBytes(int l) const { return l == height_ ? leaves_.bytes() : inner_[l].bytes(); }
+  /// Bytes of level l (pointer matrix + allocated blocks); bytes() adds the walk's caches.
+  size_t levelBytes(int l) const {
+    return l == height_ ? leaves_.bytes() : inner_[l].bytes();
+  }
+  /// The leaf level's occupancy masks: one bit per entry of every allocated 8x8x8 leaf block,
+  /// 8 words per block (word k = the block's z-slice k, bit 8y + x), set where a leaf exists.
+  /// A copy of `range.begin != MT_NULL` that is 64x smaller, so the ray walk tests an empty
+  /// bottom-level cell, and whether its parent exists, in cache instead of loading leaf ranges.
+  /// Empty (and unused) when the leaf blocks are not 8x8x8.
+  const std::vector<uint64_t>& leafMasks() const { return leafMask_; }
+  /// Dense existence bits of the upper levels, one bit per node, for each level l < H whose
+  /// dense bit array is no larger than its block-sparse storage (so they at most double the
+  /// inner levels' bytes, which are a small part of the tree): a probe during the walk is one
+  /// word read from a small array that stays in cache. Levels below use the block-sparse bytes.
+  int denseLevels() const { return denseLevels_; }
+  size_t walkCacheBytes() const { return (leafMask_.size() + levelBits_.size()) * sizeof(uint64_t); }
+  /// Does inner node c of level l < H exist? The dense bits where they are kept, else one
+  /// block-sparse access.
+  bool innerExists(int level, const int c[3]) const {
+    if (level < denseLevels_) {
+      const DenseLevel& d = dense_[level];
+      const uint64_t i = (((uint64_t(c[2]) << d.ly) | uint64_t(c[1])) << d.lx) | uint64_t(c[0]);
+      return (levelBits_[d.offset + (i >> 6)] >> (i & 63)) & 1u;
+    }
+    const uint8_t* v = inner_[level].find(c[0], c[1], c[2]);
+    return v && *v;
+  }
+  /// Recomputes the walk's caches (leaf occupancy masks, dense upper-level bits) from the
+  /// levels. The builders call it; anything that fills the levels by other means must too.
+  void buildWalkCaches(int threads);
   uint32_t levelBlocks(int l) const { return l == height_ ? leaves_.numBlocks() : inner_[l].numBlocks(); }
   /// Total bytes of the tree: all levels plus the primitive index array.
   size_t bytes() const;
@@ -194,7 +227,24 @@ class MatrixTree {
   std::vector<BlockSparseMatrix<uint8_t>> inner_;  // levels 0..H-1
   BlockSparseMatrix<MtLeafRange> leaves_;          // level H
   std::vector<uint32_t> prims_;
+  std::vector<uint64_t> leafMask_;  // see leafMasks()
+  std::vector<uint64_t> levelBits_;  // see innerExists()
+  struct DenseLevel {
+    size_t offset = 0;  // first word of the level in levelBits_
+    int lx = 0, ly = 0;  // log2 of the level's node counts along x and y
+  };
+  std::array<DenseLevel, MT_MAX_LEVELS> dense_{};
+  int denseLevels_ = 0;
+  // Bottom-level sibling test (walk): the bits of a leaf's parent's children within one mask
+  // word, for a leaf at (x, y) = (0, 0) of its block, and whether the parent also spans z.
+  uint64_t siblingBits_ = 1;
+  int siblingLow_[3] = {~0, ~0, ~0};  // AND-mask clearing the split axes' low coordinate bit
+  bool siblingZ_ = false;
 
+  /// The bottom-level cell L (in range) through the occupancy masks: 1 = a leaf (its range in
+  /// r), 0 = an empty cell whose parent exists, -1 = the parent is absent too. Two node visits
+  /// at most (the cell, its parent), as leafAt + an existence probe would count them.
+  int bottomCell(const int L[3], MtLeafRange& r, TraversalStats* st) const;
   // Work arrays of the build, kept between builds so that rebuilding every frame does not pay
   // for allocating and first-touching them again (the paper's §6 remark on memory handling).
   struct BuildScratch {
@@ -251,7 +301,7 @@ inline NodeRef MatrixTree::locate(const int L[3], int lo, int hi, TraversalStats
     const int mid = (lo + hi) / 2;
     ancestor(L, mid, c);
     if (st) ++st->nodeVisits;
-    if (nodeExists(mid, c)) lo = mid;
+    if (innerExists(mid, c)) lo = mid;
     else hi = mid;
   }
   r.level = hi;
@@ -276,7 +326,7 @@ inline NodeRef MatrixTree::neighbourFind(const NodeRef& n, int axis, int dir, co
       r.exists = true;
       return r;
     }
-  } else if (nodeExists(n.level, c)) {
+  } else if (innerExists(n.level, c)) {
     return locate(L, n.level, height_ + 1, st);
   }
   return searchAbove(L, n.level, st);
@@ -294,7 +344,7 @@ inline NodeRef MatrixTree::searchAbove(const int L[3], int hi, TraversalStats* s
     const int probe = hi - step;
     ancestor(L, probe, a);
     if (st) ++st->nodeVisits;
-    if (nodeExists(probe, a)) {
+    if (innerExists(probe, a)) {
       lo = probe;
       break;
     }
@@ -304,14 +354,63 @@ inline NodeRef MatrixTree::searchAbove(const int L[3], int hi, TraversalStats* s
   return locate(L, lo, hi, st);
 }
 
+inline int MatrixTree::bottomCell(const int L[3], MtLeafRange& r, TraversalStats* st) const {
+  const int H = height_;
+  if (st) ++st->nodeVisits;
+  if (leafMask_.empty()) {  // leaf blocks not 8x8x8: the block-sparse accesses themselves
+    if (leafAt(L, r)) return 1;
+    if (H == 0) return -1;
+    int c[3];
+    ancestor(L, H - 1, c);
+    if (st) ++st->nodeVisits;
+    return innerExists(H - 1, c) ? 0 : -1;
+  }
+  const MtSparseDesc& d = leaves_.desc();
+  const uint32_t b =
+      leaves_.pointers()[(static_cast<size_t>(L[2] >> 3) * d.ptrDims[1] + (L[1] >> 3)) * d.ptrDims[0] + (L[0] >> 3)];
+  if (b == MT_NULL) return -1;  // no leaf in this 8x8x8 block, so none under the cell's parent
+  const uint64_t* w = leafMask_.data() + size_t(b) * 8;
+  const int x = L[0] & 7, y = L[1] & 7, z = L[2] & 7;
+  if ((w[z] >> (8 * y + x)) & 1u) {
+    r = leaves_.data()[size_t(b) * 512 + (z << 6) + (y << 3) + x];
+    return 1;
+  }
+  if (st) ++st->nodeVisits;
+  const int zs = z & siblingLow_[2];
+  const uint64_t any = w[zs] | (siblingZ_ ? w[zs + 1] : 0);
+  return (any & (siblingBits_ << (8 * (y & siblingLow_[1]) + (x & siblingLow_[0])))) ? 0 : -1;
+}
+
 // ---------------------------------------------------------------------------------------------
 template <class LeafFn>
 void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& fn,
                              TraversalStats* st) const {
   if (empty_ || !isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return;
   if (d.x == 0 && d.y == 0 && d.z == 0) return;
+  // Per axis: the reciprocal direction (no division per step) and which face the ray leaves by.
+  // An axis whose reciprocal is not finite (d = 0, or subnormal) does not move.
+  double inv[3];
+  int up[3];
+  bool moves[3];
+  for (int a = 0; a < 3; ++a) {
+    inv[a] = d[a] != 0 ? 1.0 / d[a] : 0.0;
+    moves[a] = std::fabs(inv[a]) < std::numeric_limits<double>::infinity() && d[a] != 0;
+    if (!moves[a]) inv[a] = 0.0;
+    up[a] = d[a] > 0 ? 1 : 0;
+  }
+  // The root box's slab test with those reciprocals, without branches on the slab order: many
+  // rays of a frame miss the root box, and this is all they cost.
   double t0 = tmin, t1 = tmax;
-  if (!rayBox(o, d, root_, t0, t1)) return;
+  for (int a = 0; a < 3; ++a) {
+    if (!moves[a]) {
+      if (o[a] < root_.lo[a] || o[a] > root_.hi[a]) return;
+      continue;
+    }
+    const double tn = (root_.lo[a] - o[a]) * inv[a], tf = (root_.hi[a] - o[a]) * inv[a];
+    t0 = std::max(t0, std::min(tn, tf));
+    t1 = std::min(t1, std::max(tn, tf));
+  }
+  if (!(t0 <= t1)) return;
   const int H = height_;
   const Vec3 ol = o - root_.lo;  // local coordinates: the root box starts at 0
   int L[3];
@@ -322,16 +421,24 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
   }
   NodeRef n = locate(L, 0, H + 1, st);
   double tEnter = t0;
-  // Per axis: the reciprocal direction (no division per step) and which face the ray leaves by.
-  double inv[3];
-  int up[3];
-  bool moves[3];
-  for (int a = 0; a < 3; ++a) {
-    moves[a] = d[a] != 0;
-    inv[a] = moves[a] ? 1.0 / d[a] : 0.0;
-    if (!(std::fabs(inv[a]) < std::numeric_limits<double>::infinity())) moves[a] = false, inv[a] = 0.0;
-    up[a] = d[a] > 0 ? 1 : 0;
-  }
+  // +inf on the axes the ray does not move along, so every axis has an exit plane.
+  double never[3];
+  for (int a = 0; a < 3; ++a) never[a] = moves[a] ? 0.0 : std::numeric_limits<double>::infinity();
+  // The exit plane of the node with integer coordinates c and extent cs: the nearest of the three
+  // far faces (ties: the lower axis), or -1 if the ray interval ends first (tExit = t1). Written
+  // without branches on the comparisons, which a step cannot predict.
+  auto exitOf = [&](const int c[3], const Vec3& cs, double& tExit) -> int {
+    const double tx = ((c[0] + up[0]) * cs[0] - ol[0]) * inv[0] + never[0];
+    const double ty = ((c[1] + up[1]) * cs[1] - ol[1]) * inv[1] + never[1];
+    const double tz = ((c[2] + up[2]) * cs[2] - ol[2]) * inv[2] + never[2];
+    int ax = ty < tx ? 1 : 0;
+    double tm = ty < tx ? ty : tx;
+    ax = tz < tm ? 2 : ax;
+    tm = tz < tm ? tz : tm;
+    const bool ends = !(tm < t1);
+    tExit = ends ? t1 : tm;
+    return ends ? -1 : ax;
+  };
   const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
   const Vec3 csH = cellSize_[H];
   const int dimH[3] = {dim(H, 0), dim(H, 1), dim(H, 2)};
@@ -343,38 +450,26 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
       // general loop's expression, so the walk is the same, with less bookkeeping per step.
       for (; step < maxSteps; ++step) {
         if (st) ++st->cells;
-        double tExit = t1;
-        int exitAxis = -1;
-        for (int a = 0; a < 3; ++a) {
-          if (!moves[a]) continue;
-          const double t = ((L[a] + up[a]) * csH[a] - ol[a]) * inv[a];
-          if (t < tExit) { tExit = t; exitAxis = a; }
-        }
+        double tExit;
+        const int exitAxis = exitOf(L, csH, tExit);
         tExit = std::max(tExit, tEnter);
         if (n.exists && fn(prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit)) return;
         if (exitAxis < 0) return;
         L[exitAxis] += up[exitAxis] ? 1 : -1;
         if (L[exitAxis] < 0 || L[exitAxis] >= dimH[exitAxis]) return;
         tEnter = tExit;
-        if (st) ++st->nodeVisits;
-        if (leafAt(L, n.range)) {
-          n.exists = true;
-          continue;
-        }
-        n = searchAbove(L, H, st);
+        const int cell = bottomCell(L, n.range, st);
+        n.exists = cell > 0;
+        if (cell >= 0) continue;
+        // The parent is absent: the largest empty node containing L, above level H - 1.
+        n = searchAbove(L, H - 1, st);
         if (n.level != H) break;
       }
       continue;  // n is now a larger empty node containing L: the general step below
     }
     if (st) ++st->cells;
-    const Vec3 cs = cellSize_[n.level];
-    double tExit = t1;
-    int exitAxis = -1;
-    for (int a = 0; a < 3; ++a) {
-      if (!moves[a]) continue;
-      const double t = ((n.c[a] + up[a]) * cs[a] - ol[a]) * inv[a];
-      if (t < tExit) { tExit = t; exitAxis = a; }
-    }
+    double tExit;
+    const int exitAxis = exitOf(n.c, cellSize_[n.level], tExit);
     tExit = std::max(tExit, tEnter);
     if (n.exists) {
       if (fn(prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit)) return;

@@ -6,6 +6,7 @@
 #include "mtree/intersect.h"
 #include "mtree/matrix_tree.h"
 #include "mtree/primitives.h"
+#include "mtree/triangle_batch.h"
 
 namespace mtree {
 
@@ -43,23 +44,24 @@ inline bool intersectFirst(const MatrixTree& tree, const TriangleMesh& mesh, Vec
   hit.t = tmax;
   uint64_t tests = 0;
   RayMailbox mb;
+  uint32_t fresh[64];  // a leaf's triangles not yet tested by this ray, in leaf order
   tree.traverseRay(
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double /*tEnter*/, double tExit) {
-        for (uint32_t k = 0; k < count; ++k) {
-          const uint32_t id = prims[k];
-          if (mb.seen(id)) continue;
-          double t, u, v;
-          ++tests;
-          if (rayTriangleT<Test>(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t,
-                                 t, u, v)) {
+        for (uint32_t k = 0; k < count;) {
+          uint32_t m = 0;
+          for (; k < count && m < 64; ++k)
+            if (!mb.seen(prims[k])) fresh[m++] = prims[k];
+          tests += m;
+          testTriangles<Test>(mesh, o, d, fresh, m, tmin, hit.t, [&](uint32_t id, double t, double u, double v) {
             if (t < hit.t || (t == hit.t && id < hit.prim)) {
               hit.t = t;
               hit.prim = id;
               hit.u = u;
               hit.v = v;
             }
-          }
+            return false;
+          });
         }
         // A hit inside this node (t <= tExit) cannot be beaten by a later node.
         return hit.prim != MT_NULL && hit.t <= tExit;
@@ -77,19 +79,22 @@ inline bool intersectAny(const MatrixTree& tree, const TriangleMesh& mesh, Vec3 
   bool found = false;
   uint64_t tests = 0;
   RayMailbox mb;
+  uint32_t fresh[64];
   tree.traverseRay(
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double, double) {
-        for (uint32_t k = 0; k < count; ++k) {
-          const uint32_t id = prims[k];
-          if (mb.seen(id)) continue;
-          double t, u, v;
-          ++tests;
-          if (rayTriangleT<Test>(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax,
-                                 t, u, v)) {
-            found = true;
+        for (uint32_t k = 0; k < count;) {
+          uint32_t m = 0;
+          for (; k < count && m < 64; ++k)
+            if (!mb.seen(prims[k])) fresh[m++] = prims[k];
+          // Counted up to the triangle that hits, as a one-by-one loop would stop there.
+          uint32_t at = 0;
+          found = testTriangles<Test>(mesh, o, d, fresh, m, tmin, tmax, [&](uint32_t id, double, double, double) {
+            while (fresh[at] != id) ++at;
             return true;
-          }
+          });
+          tests += found ? at + 1 : m;
+          if (found) return true;
         }
         return false;
       },

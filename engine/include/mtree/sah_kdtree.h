@@ -87,6 +87,7 @@
 
 #include "mtree/geometry.h"
 #include "mtree/intersect.h"
+#include "mtree/triangle_batch.h"
 #include "mtree/matrix_tree.h"
 #include "mtree/primitives.h"
 #include "mtree/raycast.h"
@@ -465,20 +466,16 @@ struct SahFirstVisitor {
   }
   double cutoff() const { return hit.prim != MT_NULL ? hit.t : std::numeric_limits<double>::infinity(); }
   bool leaf(const uint32_t* prims, uint32_t count) {
-    for (uint32_t k = 0; k < count; ++k) {
-      const uint32_t id = prims[k];
-      double t, u, v;
-      ++tests;
-      if (rayTriangleT<Test>(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t, t,
-                             u, v)) {
-        if (t < hit.t || (t == hit.t && id < hit.prim)) {
-          hit.t = t;
-          hit.prim = id;
-          hit.u = u;
-          hit.v = v;
-        }
+    tests += count;
+    testTriangles<Test>(mesh, o, d, prims, count, tmin, hit.t, [&](uint32_t id, double t, double u, double v) {
+      if (t < hit.t || (t == hit.t && id < hit.prim)) {
+        hit.t = t;
+        hit.prim = id;
+        hit.u = u;
+        hit.v = v;
       }
-    }
+      return false;
+    });
     return false;
   }
 };
@@ -492,17 +489,14 @@ struct SahAnyVisitor {
   uint64_t tests = 0;
   double cutoff() const { return std::numeric_limits<double>::infinity(); }
   bool leaf(const uint32_t* prims, uint32_t count) {
-    for (uint32_t k = 0; k < count; ++k) {
-      const uint32_t id = prims[k];
-      double t, u, v;
-      ++tests;
-      if (rayTriangleT<Test>(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax, t, u,
-                             v)) {
-        found = true;
-        return true;
-      }
-    }
-    return false;
+    // The count stops at the pair that holds the hit, as the one-by-one loop's would within one.
+    uint32_t k = 0;
+    found = testTriangles<Test>(mesh, o, d, prims, count, tmin, tmax, [&](uint32_t id, double, double, double) {
+      while (prims[k] != id) ++k;
+      return true;
+    });
+    tests += found ? k + 1 : count;
+    return found;
   }
 };
 
