@@ -33,6 +33,16 @@ struct RayHit {
   uint32_t prim = MT_NULL;
   double u = 0, v = 0;
   bool hit() const { return prim != MT_NULL; }
+  /// Keeps triangle `id` hit at t (weights u, v) if it is nearer than the hit held, or as near
+  /// with a smaller id: the first-hit rule of every tree and of the brute force.
+  void offer(uint32_t id, double tt, double uu, double vv) {
+    if (tt < t || (tt == t && id < prim)) {
+      t = tt;
+      prim = id;
+      u = uu;
+      v = vv;
+    }
+  }
 };
 
 /// Closest hit with t in [tmin, tmax]. Returns whether anything was hit. `Test` picks the
@@ -54,12 +64,7 @@ inline bool intersectFirst(const MatrixTree& tree, const TriangleMesh& mesh, Vec
             if (!mb.seen(prims[k])) fresh[m++] = prims[k];
           tests += m;
           testTriangles<Test>(mesh, o, d, fresh, m, tmin, hit.t, [&](uint32_t id, double t, double u, double v) {
-            if (t < hit.t || (t == hit.t && id < hit.prim)) {
-              hit.t = t;
-              hit.prim = id;
-              hit.u = u;
-              hit.v = v;
-            }
+            hit.offer(id, t, u, v);
             return false;
           });
         }
@@ -110,14 +115,8 @@ inline bool intersectFirstBruteForce(const TriangleMesh& mesh, Vec3 o, Vec3 d, d
   hit.t = tmax;
   for (size_t id = 0; id < mesh.size(); ++id) {
     double t, u, v;
-    if (rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t, t, u, v)) {
-      if (t < hit.t || (t == hit.t && id < hit.prim)) {
-        hit.t = t;
-        hit.prim = static_cast<uint32_t>(id);
-        hit.u = u;
-        hit.v = v;
-      }
-    }
+    if (rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, hit.t, t, u, v))
+      hit.offer(static_cast<uint32_t>(id), t, u, v);
   }
   if (!hit.hit()) hit.t = std::numeric_limits<double>::infinity();
   return hit.hit();

@@ -468,12 +468,7 @@ struct SahFirstVisitor {
   bool leaf(const uint32_t* prims, uint32_t count) {
     tests += count;
     testTriangles<Test>(mesh, o, d, prims, count, tmin, hit.t, [&](uint32_t id, double t, double u, double v) {
-      if (t < hit.t || (t == hit.t && id < hit.prim)) {
-        hit.t = t;
-        hit.prim = id;
-        hit.u = u;
-        hit.v = v;
-      }
+      hit.offer(id, t, u, v);
       return false;
     });
     return false;
