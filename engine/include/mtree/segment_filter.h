@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "mtree/cells.h"
 #include "mtree/geometry.h"
@@ -197,6 +198,55 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
   return true;
 }
 
+/// The part of a certain-hit decision that tetrahedra and convex cells share. Face i's plane is
+/// given by how far inside it p1 lies, l1[i] (>= 0 inside, in the cell's units), and its change
+/// along d, dl[i]; m is the margin. Finds where the line enters the cell (te, through face ie)
+/// and leaves it (tx, face ix), and is true only if the line is certainly inside between them:
+/// no face plane parallel to it and near, and at both crossings every other face at least m
+/// away, the crossing face's distance at p1 and at p2 at least m, and veto(tc, ic) false (a
+/// cell's own extra test, e.g. a quad's diagonals).
+template <class Veto>
+inline bool certainCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx,
+                             Veto&& veto) {
+  te = -std::numeric_limits<double>::infinity();
+  tx = std::numeric_limits<double>::infinity();
+  int ie = -1, ix = -1;
+  for (int i = 0; i < nf; ++i) {
+    if (dl[i] == 0) {
+      if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
+      continue;
+    }
+    const double ti = -l1[i] / dl[i];
+    if (dl[i] > 0) {
+      if (ti > te) te = ti, ie = i;
+    } else if (ti < tx) {
+      tx = ti, ix = i;
+    }
+  }
+  if (ie < 0 || ix < 0 || !(te < tx)) return false;
+  for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
+    for (int j = 0; j < nf; ++j)
+      if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
+    if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
+    if (veto(tc, ic)) return false;
+  }
+  return true;
+}
+
+/// The first hit of a segment whose line enters a convex cell at te and leaves at tx: te if
+/// 0 < te <= 1, else tx if te <= 0 < tx <= 1; false when neither crossing is in the segment.
+inline bool firstCrossingInSegment(double te, double tx, double& t) {
+  if (te > 0 && te <= 1) {
+    t = te;
+    return true;
+  }
+  if (te <= 0 && tx > 0 && tx <= 1) {
+    t = tx;
+    return true;
+  }
+  return false;
+}
+
 /// Where vtkTetra::IntersectWithLine(p1, p2, tol = 0, ...) reports its hit, when that is
 /// certain from the engine's copy of the cell. VTK's answer for a tetrahedron is the smallest t in
 /// [0, 1] at which the segment crosses one of its four triangles. With barycentric coordinates
@@ -246,37 +296,12 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
   // VTK's t carries an absolute error of about eps x magnitude / |d|: where that could reorder
   // two hits by more than the 1e-9 the locator treats as a tie, VTK must decide.
   if (1024 * std::numeric_limits<double>::epsilon() * std::max(f.mag, vmag) * f.invLen > 1e-10) return false;
-  double te = -std::numeric_limits<double>::infinity(), tx = std::numeric_limits<double>::infinity();
-  int ie = -1, ix = -1;
-  for (int i = 0; i < 4; ++i) {
-    if (dl[i] == 0) {
-      if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
-      continue;
-    }
-    const double ti = -l1[i] / dl[i];
-    if (dl[i] > 0) {
-      if (ti > te) te = ti, ie = i;
-    } else if (ti < tx) {
-      tx = ti, ix = i;
-    }
-  }
-  if (ie < 0 || ix < 0 || !(te < tx)) return false;
   // Both crossings well inside their faces, and neither near t = 0 or t = 1 (in barycentric
-  // terms: the face's coordinate at p1 and at p2 is not near 0).
-  for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
-    for (int j = 0; j < 4; ++j)
-      if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
-    if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
-  }
-  if (te > 0 && te <= 1) {
-    t = te;
-    return true;
-  }
-  if (te <= 0 && tx > 0 && tx <= 1) {
-    t = tx;
-    return true;
-  }
-  return false;  // no crossing in [0, 1]: a miss, left to the rejection test and VTK
+  // terms: the face's coordinate at p1 and at p2 is not near 0). No crossing in [0, 1]: a miss,
+  // left to the rejection test and VTK.
+  double te, tx;
+  return certainCrossings(l1, dl, 4, m, te, tx, [](double, int) { return false; }) &&
+         firstCrossingInSegment(te, tx, t);
 }
 
 /// The same for a hexahedron, wedge or pyramid whose faces are planar (to round-off) and which is
@@ -354,45 +379,21 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
     l1[i] = -dot(nrm, f.p1 - o);
     dl[i] = -dot(nrm, f.d);
   }
-  double te = -std::numeric_limits<double>::infinity(), tx = std::numeric_limits<double>::infinity();
-  int ie = -1, ix = -1;
-  for (int i = 0; i < nf; ++i) {
-    if (dl[i] == 0) {
-      if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
-      continue;
+  // A quad face's crossing must also be away from both its diagonals (in its plane: distance to
+  // the diagonal's line).
+  auto nearDiagonal = [&](double tc, int ic) {
+    if (topo->faceSize[ic] != 4) return false;
+    const int* v = topo->face[ic];
+    const Vec3 x = f.p1 + f.d * tc;
+    for (int k = 0; k < 2; ++k) {
+      const Vec3 a = p[v[k]], e = p[v[k + 2]] - a;
+      const Vec3 c = cross(e, x - a);  // |c| / |e|: the distance to the diagonal's line
+      if (!(dot(c, c) >= m * m * L * L * dot(e, e))) return true;
     }
-    const double ti = -l1[i] / dl[i];
-    if (dl[i] > 0) {
-      if (ti > te) te = ti, ie = i;
-    } else if (ti < tx) {
-      tx = ti, ix = i;
-    }
-  }
-  if (ie < 0 || ix < 0 || !(te < tx)) return false;
-  for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
-    for (int j = 0; j < nf; ++j)
-      if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
-    if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
-    if (topo->faceSize[ic] == 4) {
-      // Away from both diagonals of the quad (in its plane: distance to the diagonal's line).
-      const int* v = topo->face[ic];
-      const Vec3 x = f.p1 + f.d * tc;
-      for (int k = 0; k < 2; ++k) {
-        const Vec3 a = p[v[k]], e = p[v[k + 2]] - a;
-        const Vec3 c = cross(e, x - a);  // |c| / |e|: the distance to the diagonal's line
-        if (!(dot(c, c) >= m * m * L * L * dot(e, e))) return false;
-      }
-    }
-  }
-  if (te > 0 && te <= 1) {
-    t = te;
-    return true;
-  }
-  if (te <= 0 && tx > 0 && tx <= 1) {
-    t = tx;
-    return true;
-  }
-  return false;
+    return false;
+  };
+  double te, tx;
+  return certainCrossings(l1, dl, nf, m, te, tx, nearDiagonal) && firstCrossingInSegment(te, tx, t);
 }
 
 /// tetraFirstHitIfCertain or convexFirstHitIfCertain, by the cell's type.
