@@ -199,7 +199,7 @@ INSTANTIATE_TEST_SUITE_P(RealMeshes, RealMeshRays, ::testing::ValuesIn(mtest::re
                          });
 
 // mtree::testTriangles (two Moller-Trumbore tests per SSE2 step) reports exactly what
-// rayTriangleMT reports one by one: the same triangles, and t, u, v equal bit for bit, for lists
+// rayTriangleMT reports one by one: the same list positions, and t, u, v equal bit for bit, for lists
 // of 0..9 triangles of a real mesh (pairs and a tail), rays aimed at a vertex, an edge midpoint
 // or a random point of a listed triangle (hits on edges and vertices), random rays, a ray in a
 // triangle's plane, a list holding one triangle twice, degenerate triangles (det = 0), a NaN
@@ -255,26 +255,27 @@ TEST(TriangleBatch, EqualsOneByOneMollerTrumbore) {
         tmax = tmin + rng.uniform(0, 0.3);
       }
       struct Hit {
-        uint32_t id;
+        uint32_t k;  // position in the list
         double t, u, v;
       };
       std::vector<Hit> want, got;
-      for (uint32_t id : ids) {
+      for (uint32_t k = 0; k < n; ++k) {
+        const uint32_t id = ids[k];
         double t, u, v;
         if (mtree::rayTriangleMT(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax, t, u,
                                  v))
-          want.push_back({id, t, u, v});
+          want.push_back({k, t, u, v});
       }
       const bool stopped = mtree::testTriangles<mtree::TriangleTest::MollerTrumbore>(
-          mesh, o, d, ids.data(), n, tmin, tmax, [&](uint32_t id, double t, double u, double v) {
-            got.push_back({id, t, u, v});
+          mesh, o, d, ids.data(), n, tmin, tmax, [&](uint32_t k, double t, double u, double v) {
+            got.push_back({k, t, u, v});
             return false;
           });
       ++lists;
       reported += got.size();
       bool same = !stopped && got.size() == want.size();
       for (size_t k = 0; same && k < got.size(); ++k)
-        same = got[k].id == want[k].id && got[k].t == want[k].t && got[k].u == want[k].u && got[k].v == want[k].v;
+        same = got[k].k == want[k].k && got[k].t == want[k].t && got[k].u == want[k].u && got[k].v == want[k].v;
       if (!same && differ++ == 0)
         first = "trial " + std::to_string(trial) + ": " + std::to_string(got.size()) + " reported, " +
                 std::to_string(want.size()) + " one by one";
@@ -282,9 +283,9 @@ TEST(TriangleBatch, EqualsOneByOneMollerTrumbore) {
       if (!want.empty()) {
         uint32_t calls = 0;
         EXPECT_TRUE(mtree::testTriangles<mtree::TriangleTest::MollerTrumbore>(
-            mesh, o, d, ids.data(), n, tmin, tmax, [&](uint32_t id, double, double, double) {
+            mesh, o, d, ids.data(), n, tmin, tmax, [&](uint32_t k, double, double, double) {
               ++calls;
-              return id == want[0].id;
+              return k == want[0].k;
             }));
         EXPECT_EQ(calls, 1u);
       }

@@ -28,6 +28,21 @@ struct RayMailbox {
   }
 };
 
+/// Calls f(ids, m) for the triangles among prims[0..count) that this ray has not tested yet
+/// (the mailbox records them now), in leaf order, at most 64 at a time; a true return stops and
+/// is returned.
+template <class F>
+inline bool forUntested(RayMailbox& mb, const uint32_t* prims, uint32_t count, F&& f) {
+  uint32_t fresh[64];
+  for (uint32_t k = 0; k < count;) {
+    uint32_t m = 0;
+    for (; k < count && m < 64; ++k)
+      if (!mb.seen(prims[k])) fresh[m++] = prims[k];
+    if (f(static_cast<const uint32_t*>(fresh), m)) return true;
+  }
+  return false;
+}
+
 struct RayHit {
   double t = std::numeric_limits<double>::infinity();
   uint32_t prim = MT_NULL;
@@ -54,20 +69,17 @@ inline bool intersectFirst(const MatrixTree& tree, const TriangleMesh& mesh, Vec
   hit.t = tmax;
   uint64_t tests = 0;
   RayMailbox mb;
-  uint32_t fresh[64];  // a leaf's triangles not yet tested by this ray, in leaf order
   tree.traverseRay(
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double /*tEnter*/, double tExit) {
-        for (uint32_t k = 0; k < count;) {
-          uint32_t m = 0;
-          for (; k < count && m < 64; ++k)
-            if (!mb.seen(prims[k])) fresh[m++] = prims[k];
+        forUntested(mb, prims, count, [&](const uint32_t* ids, uint32_t m) {
           tests += m;
-          testTriangles<Test>(mesh, o, d, fresh, m, tmin, hit.t, [&](uint32_t id, double t, double u, double v) {
-            hit.offer(id, t, u, v);
+          testTriangles<Test>(mesh, o, d, ids, m, tmin, hit.t, [&](uint32_t k, double t, double u, double v) {
+            hit.offer(ids[k], t, u, v);
             return false;
           });
-        }
+          return false;
+        });
         // A hit inside this node (t <= tExit) cannot be beaten by a later node.
         return hit.prim != MT_NULL && hit.t <= tExit;
       },
@@ -84,24 +96,19 @@ inline bool intersectAny(const MatrixTree& tree, const TriangleMesh& mesh, Vec3 
   bool found = false;
   uint64_t tests = 0;
   RayMailbox mb;
-  uint32_t fresh[64];
   tree.traverseRay(
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double, double) {
-        for (uint32_t k = 0; k < count;) {
-          uint32_t m = 0;
-          for (; k < count && m < 64; ++k)
-            if (!mb.seen(prims[k])) fresh[m++] = prims[k];
+        return forUntested(mb, prims, count, [&](const uint32_t* ids, uint32_t m) {
           // Counted up to the triangle that hits, as a one-by-one loop would stop there.
           uint32_t at = 0;
-          found = testTriangles<Test>(mesh, o, d, fresh, m, tmin, tmax, [&](uint32_t id, double, double, double) {
-            while (fresh[at] != id) ++at;
+          found = testTriangles<Test>(mesh, o, d, ids, m, tmin, tmax, [&](uint32_t k, double, double, double) {
+            at = k;
             return true;
           });
           tests += found ? at + 1 : m;
-          if (found) return true;
-        }
-        return false;
+          return found;
+        });
       },
       st);
   if (st) st->primTests += tests;

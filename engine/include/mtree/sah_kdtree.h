@@ -467,8 +467,8 @@ struct SahFirstVisitor {
   double cutoff() const { return hit.prim != MT_NULL ? hit.t : std::numeric_limits<double>::infinity(); }
   bool leaf(const uint32_t* prims, uint32_t count) {
     tests += count;
-    testTriangles<Test>(mesh, o, d, prims, count, tmin, hit.t, [&](uint32_t id, double t, double u, double v) {
-      hit.offer(id, t, u, v);
+    testTriangles<Test>(mesh, o, d, prims, count, tmin, hit.t, [&](uint32_t k, double t, double u, double v) {
+      hit.offer(prims[k], t, u, v);
       return false;
     });
     return false;
@@ -484,13 +484,13 @@ struct SahAnyVisitor {
   uint64_t tests = 0;
   double cutoff() const { return std::numeric_limits<double>::infinity(); }
   bool leaf(const uint32_t* prims, uint32_t count) {
-    // The count stops at the pair that holds the hit, as the one-by-one loop's would within one.
-    uint32_t k = 0;
-    found = testTriangles<Test>(mesh, o, d, prims, count, tmin, tmax, [&](uint32_t id, double, double, double) {
-      while (prims[k] != id) ++k;
+    // Counted up to the triangle that hits, as a one-by-one loop would stop there.
+    uint32_t at = 0;
+    found = testTriangles<Test>(mesh, o, d, prims, count, tmin, tmax, [&](uint32_t k, double, double, double) {
+      at = k;
       return true;
     });
-    tests += found ? k + 1 : count;
+    tests += found ? at + 1 : count;
     return found;
   }
 };

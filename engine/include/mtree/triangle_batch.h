@@ -15,9 +15,9 @@
 
 namespace mtree {
 
-/// Tests the triangles ids[0..n) in list order and calls hit(id, t, u, v) for each one the ray
-/// o + t d meets with t in [tmin, tmax]; a true return from hit() stops the list (and the call
-/// returns true). `tmax` is read again before every triangle or pair, so a first-hit caller that
+/// Tests the triangles ids[0..n) in list order and calls hit(k, t, u, v) for each one the ray
+/// o + t d meets with t in [tmin, tmax], k its position in the list (the triangle is ids[k]); a
+/// true return from hit() stops the list (and the call returns true). `tmax` is read again before every triangle or pair, so a first-hit caller that
 /// lowers it in hit() narrows the rest of the list.
 ///
 /// Moller-Trumbore runs two triangles per step in SSE2 lanes: each lane performs rayTriangleMT's
@@ -85,8 +85,8 @@ inline bool testTriangles(const TriangleMesh& mesh, Vec3 o, Vec3 d, const uint32
       _mm_store_pd(t, tt);
       _mm_store_pd(u, uu);
       _mm_store_pd(v, vv);
-      if ((m & 1) && hit(i0, t[0], u[0], v[0])) return true;
-      if ((m & 2) && hit(i1, t[1], u[1], v[1])) return true;
+      if ((m & 1) && hit(k, t[0], u[0], v[0])) return true;
+      if ((m & 2) && hit(k + 1, t[1], u[1], v[1])) return true;
     }
   }
 #endif
@@ -94,7 +94,7 @@ inline bool testTriangles(const TriangleMesh& mesh, Vec3 o, Vec3 d, const uint32
     const uint32_t id = ids[k];
     double t, u, v;
     if (rayTriangleT<Test>(o, d, mesh.vertex(id, 0), mesh.vertex(id, 1), mesh.vertex(id, 2), tmin, tmax, t, u, v) &&
-        hit(id, t, u, v))
+        hit(k, t, u, v))
       return true;
   }
   return false;
