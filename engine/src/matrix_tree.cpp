@@ -85,8 +85,8 @@ void MatrixTree::buildWalkCaches(int threads) {
       if (!v[e]) continue;
       int c[3];
       m.entryCoords(static_cast<uint32_t>(e), c);
-      const uint64_t i = (((uint64_t(c[2]) << dense_[l].ly) | uint64_t(c[1])) << dense_[l].lx) | uint64_t(c[0]);
-      levelBits_[dense_[l].offset + (i >> 6)] |= uint64_t(1) << (i & 63);
+      const uint64_t i = denseBit(l, c);
+      levelBits_[i >> 6] |= uint64_t(1) << (i & 63);
     }
   }
   const MtSparseDesc& d = leaves_.desc();

@@ -117,9 +117,7 @@ class MatrixTree {
   const BlockSparseMatrix<MtLeafRange>& leafLevel() const { return leaves_; }
   const std::vector<uint32_t>& primitiveIndices() const { return prims_; }
   /// Bytes of level l (pointer matrix + allocated blocks); bytes() adds the walk's caches.
-  size_t levelBytes(int l) const {
-    return l == height_ ? leaves_.bytes() : inner_[l].bytes();
-  }
+  size_t levelBytes(int l) const { return l == height_ ? leaves_.bytes() : inner_[l].bytes(); }
   /// The leaf level's occupancy masks: one bit per entry of every allocated 8x8x8 leaf block,
   /// 8 words per block (word k = the block's z-slice k, bit 8y + x), set where a leaf exists.
   /// A copy of `range.begin != MT_NULL` that is 64x smaller, so the ray walk tests an empty
@@ -136,9 +134,8 @@ class MatrixTree {
   /// block-sparse access.
   bool innerExists(int level, const int c[3]) const {
     if (level < denseLevels_) {
-      const DenseLevel& d = dense_[level];
-      const uint64_t i = (((uint64_t(c[2]) << d.ly) | uint64_t(c[1])) << d.lx) | uint64_t(c[0]);
-      return (levelBits_[d.offset + (i >> 6)] >> (i & 63)) & 1u;
+      const uint64_t i = denseBit(level, c);
+      return (levelBits_[i >> 6] >> (i & 63)) & 1u;
     }
     const uint8_t* v = inner_[level].find(c[0], c[1], c[2]);
     return v && *v;
@@ -235,6 +232,12 @@ class MatrixTree {
   };
   std::array<DenseLevel, MT_MAX_LEVELS> dense_{};
   int denseLevels_ = 0;
+  /// Bit index of node c of dense level l in levelBits_ (x fastest, then y, then z).
+  uint64_t denseBit(int level, const int c[3]) const {
+    const DenseLevel& d = dense_[level];
+    return 64 * uint64_t(d.offset) +
+           ((((uint64_t(c[2]) << d.ly) | uint64_t(c[1])) << d.lx) | uint64_t(c[0]));
+  }
   // Bottom-level sibling test (walk): the bits of a leaf's parent's children within one mask
   // word, for a leaf at (x, y) = (0, 0) of its block, and whether the parent also spans z.
   uint64_t siblingBits_ = 1;
@@ -365,16 +368,15 @@ inline int MatrixTree::bottomCell(const int L[3], MtLeafRange& r, TraversalStats
     if (st) ++st->nodeVisits;
     return innerExists(H - 1, c) ? 0 : -1;
   }
-  const MtSparseDesc& d = leaves_.desc();
-  const uint32_t b =
-      leaves_.pointers()[(static_cast<size_t>(L[2] >> 3) * d.ptrDims[1] + (L[1] >> 3)) * d.ptrDims[0] + (L[0] >> 3)];
+  const uint32_t b = leaves_.pointers()[leaves_.pointerIndex(L[0], L[1], L[2])];
   if (b == MT_NULL) return -1;  // no leaf in this 8x8x8 block, so none under the cell's parent
   const uint64_t* w = leafMask_.data() + size_t(b) * 8;
-  const int x = L[0] & 7, y = L[1] & 7, z = L[2] & 7;
-  if ((w[z] >> (8 * y + x)) & 1u) {
-    r = leaves_.data()[size_t(b) * 512 + (z << 6) + (y << 3) + x];
+  const uint32_t local = leaves_.localIndex(L[0], L[1], L[2]);  // 64 z + 8 y + x: word z, bit 8 y + x
+  if ((w[local >> 6] >> (local & 63)) & 1u) {
+    r = leaves_.data()[size_t(b) * 512 + local];
     return 1;
   }
+  const int x = L[0] & 7, y = L[1] & 7, z = L[2] & 7;
   if (st) ++st->nodeVisits;
   const int zs = z & siblingLow_[2];
   const uint64_t any = w[zs] | (siblingZ_ ? w[zs + 1] : 0);
