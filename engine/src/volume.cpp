@@ -1284,6 +1284,31 @@ struct PixelRay {
   bool hit;  // false: the ray misses the box (its pixel stays 0)
 };
 
+/// The last part of every camera's ray set-up: the interval of the ray ro + t r.rd (index space)
+/// inside the volume's box [0, hiIdx] (an axis the ray is parallel to sets no bound, and misses
+/// when ro lies outside it), then r.t0, r.hit and r.kEnd, the number of steps dt that fit.
+inline void clipPixelRay(const double ro[3], const double hiIdx[3], double dt, PixelRay& r) {
+  double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+  bool miss = false;
+  for (int a = 0; a < 3; ++a) {
+    if (r.rd[a] == 0) {
+      if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
+      continue;
+    }
+    double ta = (0 - ro[a]) / r.rd[a], tb = (hiIdx[a] - ro[a]) / r.rd[a];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  r.t0 = t0;
+  r.hit = !miss && t0 <= t1;
+  r.kEnd = 0;
+  if (r.hit) {
+    const double kx = std::floor((t1 - t0) / dt);
+    r.kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
+  }
+}
+
 /// The per-frame numbers of a perspective ray's set-up (marchImage's expressions).
 struct RaySetupFrame {
   double fwd[3], spacing[3], roEye[3], hiIdx[3], dt;
@@ -1296,27 +1321,11 @@ inline PixelRay setupRay(const RaySetupFrame& S, int x) {
   PixelRay r;
   const Vec3 d = normalized(Vec3(S.fwd[0], S.fwd[1], S.fwd[2]) + Vec3(S.rightX[0][x], S.rightX[1][x], S.rightX[2][x]) +
                             Vec3(S.upY[0], S.upY[1], S.upY[2]));
-  double t0 = 0, t1 = std::numeric_limits<double>::infinity();
-  bool miss = false;
   for (int a = 0; a < 3; ++a) {
     r.d[a] = d[a];
     r.rd[a] = d[a] / S.spacing[a];
-    if (r.rd[a] == 0) {
-      if (S.roEye[a] < 0 || S.roEye[a] > S.hiIdx[a]) miss = true;
-      continue;
-    }
-    double ta = (0 - S.roEye[a]) / r.rd[a], tb = (S.hiIdx[a] - S.roEye[a]) / r.rd[a];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
   }
-  r.t0 = t0;
-  r.hit = !miss && t0 <= t1;
-  r.kEnd = 0;
-  if (r.hit) {
-    const double kx = std::floor((t1 - t0) / S.dt);
-    r.kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
-  }
+  clipPixelRay(S.roEye, S.hiIdx, S.dt, r);
   return r;
 }
 
@@ -1451,27 +1460,12 @@ void marchImage(const Frame& F, const Fetch& fetch, const VolumeGeometry& geo, c
           if (cam.parallel) {
             const double nx = nxs[size_t(x)], ny = nys[size_t(y)];
             const Vec3 o = pos + right * (nx * cam.parallelScale * aspect) + up * (ny * cam.parallelScale);
-            double t0 = 0, t1 = std::numeric_limits<double>::infinity();
-            bool miss = false;
             for (int a = 0; a < 3; ++a) {
               r.d[a] = fwd[a];
               ro[a] = (o[a] - geo.origin[a]) / geo.spacing[a];
               r.rd[a] = fwd[a] / geo.spacing[a];
-              if (r.rd[a] == 0) {
-                if (ro[a] < 0 || ro[a] > hiIdx[a]) miss = true;
-                continue;
-              }
-              double ta = (0 - ro[a]) / r.rd[a], tb = (hiIdx[a] - ro[a]) / r.rd[a];
-              if (ta > tb) std::swap(ta, tb);
-              t0 = std::max(t0, ta);
-              t1 = std::min(t1, tb);
             }
-            r.t0 = t0;
-            r.hit = !miss && t0 <= t1;
-            if (r.hit) {
-              const double kx = std::floor((t1 - t0) / F.dt);
-              r.kEnd = kx > 4e15 ? int64_t(4e15) : static_cast<int64_t>(kx);
-            }
+            clipPixelRay(ro, hiIdx, F.dt, r);
           } else {
             for (int a = 0; a < 3; ++a) ro[a] = roEye[a];
             r = grouped ? group[x - xg] : setupRay(S, x);
