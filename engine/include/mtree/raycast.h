@@ -60,6 +60,31 @@ struct RayHit {
   }
 };
 
+/// The leaf loops every tree's traversal shares. firstInList: the triangles ids[0..m) offered to
+/// `hit` (t in [tmin, hit.t]); anyInList: whether one is hit with t in [tmin, tmax]. Both add the
+/// triangles tested to `tests`, the any-hit count stopping at the one that hits, as a one-by-one
+/// loop would.
+template <TriangleTest Test>
+inline void firstInList(const TriangleMesh& mesh, Vec3 o, Vec3 d, const uint32_t* ids, uint32_t m, double tmin,
+                        RayHit& hit, uint64_t& tests) {
+  tests += m;
+  testTriangles<Test>(mesh, o, d, ids, m, tmin, hit.t, [&](uint32_t k, double t, double u, double v) {
+    hit.offer(ids[k], t, u, v);
+    return false;
+  });
+}
+template <TriangleTest Test>
+inline bool anyInList(const TriangleMesh& mesh, Vec3 o, Vec3 d, const uint32_t* ids, uint32_t m, double tmin,
+                      double tmax, uint64_t& tests) {
+  uint32_t at = 0;
+  const bool found = testTriangles<Test>(mesh, o, d, ids, m, tmin, tmax, [&](uint32_t k, double, double, double) {
+    at = k;
+    return true;
+  });
+  tests += found ? at + 1 : m;
+  return found;
+}
+
 /// Closest hit with t in [tmin, tmax]. Returns whether anything was hit. `Test` picks the
 /// ray/triangle test (intersect.h); the default is the engine's Moller-Trumbore.
 template <TriangleTest Test = TriangleTest::MollerTrumbore>
@@ -73,11 +98,7 @@ inline bool intersectFirst(const MatrixTree& tree, const TriangleMesh& mesh, Vec
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double /*tEnter*/, double tExit) {
         forUntested(mb, prims, count, [&](const uint32_t* ids, uint32_t m) {
-          tests += m;
-          testTriangles<Test>(mesh, o, d, ids, m, tmin, hit.t, [&](uint32_t k, double t, double u, double v) {
-            hit.offer(ids[k], t, u, v);
-            return false;
-          });
+          firstInList<Test>(mesh, o, d, ids, m, tmin, hit, tests);
           return false;
         });
         // A hit inside this node (t <= tExit) cannot be beaten by a later node.
@@ -100,14 +121,7 @@ inline bool intersectAny(const MatrixTree& tree, const TriangleMesh& mesh, Vec3 
       o, d, tmin, tmax,
       [&](const uint32_t* prims, uint32_t count, double, double) {
         return forUntested(mb, prims, count, [&](const uint32_t* ids, uint32_t m) {
-          // Counted up to the triangle that hits, as a one-by-one loop would stop there.
-          uint32_t at = 0;
-          found = testTriangles<Test>(mesh, o, d, ids, m, tmin, tmax, [&](uint32_t k, double, double, double) {
-            at = k;
-            return true;
-          });
-          tests += found ? at + 1 : m;
-          return found;
+          return found = anyInList<Test>(mesh, o, d, ids, m, tmin, tmax, tests);
         });
       },
       st);

@@ -466,11 +466,7 @@ struct SahFirstVisitor {
   }
   double cutoff() const { return hit.prim != MT_NULL ? hit.t : std::numeric_limits<double>::infinity(); }
   bool leaf(const uint32_t* prims, uint32_t count) {
-    tests += count;
-    testTriangles<Test>(mesh, o, d, prims, count, tmin, hit.t, [&](uint32_t k, double t, double u, double v) {
-      hit.offer(prims[k], t, u, v);
-      return false;
-    });
+    firstInList<Test>(mesh, o, d, prims, count, tmin, hit, tests);
     return false;
   }
 };
@@ -484,14 +480,7 @@ struct SahAnyVisitor {
   uint64_t tests = 0;
   double cutoff() const { return std::numeric_limits<double>::infinity(); }
   bool leaf(const uint32_t* prims, uint32_t count) {
-    // Counted up to the triangle that hits, as a one-by-one loop would stop there.
-    uint32_t at = 0;
-    found = testTriangles<Test>(mesh, o, d, prims, count, tmin, tmax, [&](uint32_t k, double, double, double) {
-      at = k;
-      return true;
-    });
-    tests += found ? at + 1 : count;
-    return found;
+    return found = anyInList<Test>(mesh, o, d, prims, count, tmin, tmax, tests);
   }
 };
 
