@@ -370,7 +370,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
 /* The float marcher (marchApron): one work-item per ray. */
 #define VR_DEFINE_APRON_MARCH_F(T, SFX)                                                                             \
   __kernel void mt_volume_apron_##SFX##_f(__global const uint* bptr, __global const T* bricks,                     \
-                                          __global const ulong* masks, __global const uchar* occ,                  \
+                                          __global const ulong* masks, __global const uchar* dist,                 \
                                           __global const int* ip, __global const double* dp,                       \
                                           __global const float* table, __global float* out, __global uint* counts, \
                                           int w, int h) {                                                          \
@@ -383,6 +383,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
     const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
     const float P0[3] = {(float)(o[0] + d[0] * t0), (float)(o[1] + d[1] * t0), (float)(o[2] + d[2] * t0)};         \
     const float S[3] = {(float)(d[0] * dt), (float)(d[1] * dt), (float)(d[2] * dt)};                               \
+    const int octant = (S[0] < 0.f ? 1 : 0) | (S[1] < 0.f ? 2 : 0) | (S[2] < 0.f ? 4 : 0);                         \
     uint samples = 0, skips = 0;                                                                                   \
     float Cr = 0.f, Cg = 0.f, Cb = 0.f, Ca = 0.f, Tr = 1.f;                                                        \
     long k = 0;                                                                                                    \
@@ -395,22 +396,39 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
       }                                                                                                            \
       const int bi = cell[0] >> VR_LOG2DIM, bj = cell[1] >> VR_LOG2DIM, bk = cell[2] >> VR_LOG2DIM;                \
       const size_t bidx = ((size_t)bk * nb1 + bj) * nb0 + bi;                                                      \
-      int empty = skip ? vr_empty_level(occ, ip, levels, bi, bj, bk) : -1;                                         \
-      const uint bp = empty < 0 ? bptr[bidx] : MT_NULL;                                                            \
-      if (empty < 0 && bp == MT_NULL) empty = 0;                                                                   \
-      if (empty >= 0) {                                                                                            \
-        /* Leave the node at the last sample at or before its exit. */                                             \
-        const double edge = (double)(VR_DIM << empty);                                                             \
-        const int node[3] = {bi >> empty, bj >> empty, bk >> empty};                                               \
+      /* The cube of r^3 invisible bricks from this one towards the ray's octant (the host's      \
+       * BlockSparseVolume::brickDistances; r = 1: the brick alone, e.g. an absent one). */      \
+      int r = skip ? (int)dist[bidx * 8 + octant] : 0;                                                             \
+      const uint bp = r == 0 ? bptr[bidx] : MT_NULL;                                                               \
+      if (r == 0 && bp == MT_NULL) r = 1;                                                                          \
+      if (r > 0) {                                                                                                 \
+        /* Leave the cube at the last sample at or before its exit. */                                             \
+        const int node[3] = {bi, bj, bk};                                                                          \
         double kx = (double)INFINITY;                                                                              \
         for (int a = 0; a < 3; ++a) {                                                                              \
-          const double lo = node[a] * edge, s = (double)S[a];                                                      \
-          if (s > 0) kx = mt_min(kx, (lo + edge - (double)P0[a]) / s);                                             \
-          else if (s < 0) kx = mt_min(kx, (lo - (double)P0[a]) / s);                                               \
+          const double s = (double)S[a];                                                                           \
+          if (s > 0) kx = mt_min(kx, ((double)((node[a] + r) * VR_DIM) - (double)P0[a]) / s);                      \
+          else if (s < 0) kx = mt_min(kx, ((double)((node[a] - r + 1) * VR_DIM) - (double)P0[a]) / s);             \
         }                                                                                                          \
         const double kfl = floor(kx);                                                                              \
         const long kLast = kfl >= (double)kEnd ? kEnd : (kfl <= (double)k ? k : (long)kfl);                        \
         if (skip) ++skips;                                                                                         \
+        if (kLast > k) {                                                                                           \
+          /* Sample kLast still in the cube (its brick at most r - 1 ahead per axis): skipped too. */              \
+          const float kfl1 = (float)kLast;                                                                         \
+          int in = 1;                                                                                              \
+          for (int a = 0; a < 3; ++a) {                                                                            \
+            double f;                                                                                              \
+            const int ahead = ((vr_clamp_cell((double)(P0[a] + kfl1 * S[a]), n[a], &f) >> VR_LOG2DIM) - node[a]) * \
+                              (S[a] < 0.f ? -1 : 1);                                                               \
+            in &= ahead <= r - 1;                                                                                  \
+          }                                                                                                        \
+          if (in) {                                                                                                \
+            if (skip) ++skips;                                                                                     \
+            k = kLast + 1;                                                                                         \
+            continue;                                                                                              \
+          }                                                                                                        \
+        }                                                                                                          \
         k = max(k + 1, kLast);                                                                                     \
         continue;                                                                                                  \
       }                                                                                                            \

@@ -17,8 +17,10 @@ namespace ocl {
 
 struct VolumeRenderer::State {
   // ptr/data: the float layout's pointer matrix and DIM^3 blocks, or the apron layout's brick
-  // pointers and 9^3 bricks (8 or 16 bits); masks: the apron layout's visible-cell words.
-  Buffer ptr, data, masks, occ, ip, dp, table, out, counts;
+  // pointers and 9^3 bricks (8 or 16 bits); masks: the apron layout's visible-cell words; dist:
+  // the per-octant empty cubes of the bricks (BlockSparseVolume::brickDistances), which the
+  // apron float marcher walks by, as marchApron does (the others walk the occupancy levels).
+  Buffer ptr, data, masks, occ, dist, ip, dp, table, out, counts;
   std::vector<int32_t> levelInts;  // per level: dims x/y/z, offset into occ
   int n[3] = {0, 0, 0}, logBlock[3] = {0, 0, 0}, ptrDims[2] = {0, 0};
   uint32_t blockVolume = 0;
@@ -82,6 +84,7 @@ void VolumeRenderer::upload(const BlockSparseVolume& vol) {
     else
       putVec(S.data, vol.bricks16(), "volume 16-bit bricks");
     putVec(S.masks, vol.cellMasks(), "volume cell masks");
+    putVec(S.dist, vol.brickDistances(), "volume empty cubes");
   }
   put(S.occ, occ.data(), occ.size(), "volume occupancy levels");
   run.finish();
@@ -144,7 +147,8 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
       const bool u8 = S.storage == VoxelStorage::UInt8;
       const char* name = opt.doublePrecision ? (u8 ? "mt_volume_apron_u8_d" : "mt_volume_apron_u16_d")
                                              : (u8 ? "mt_volume_apron_u8_f" : "mt_volume_apron_u16_f");
-      run.run(name, rays, 0, S.ptr, S.data, S.masks, S.occ, S.ip, S.dp, S.table, S.out, S.counts, cw, ch);
+      run.run(name, rays, 0, S.ptr, S.data, S.masks, opt.doublePrecision ? S.occ : S.dist, S.ip, S.dp, S.table,
+              S.out, S.counts, cw, ch);
     }
     run.read(S.out, small.data(), small.size() * sizeof(float), "volume image");
     run.read(S.counts, counts.data(), counts.size() * sizeof(uint32_t), "volume ray counters");

@@ -194,6 +194,30 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
   data_ = vox_.data().data();
   std::vector<float>().swap(dense);
 
+  // Per octant, the edge of the largest invisible cube of bricks with each brick at its corner:
+  // r(b) = 1 + min of r over the 7 neighbours ahead of b in that octant (the 3-d form of the
+  // largest-empty-square recurrence), 0 at a visible brick, 255 beyond the grid.
+  // Held for the 8/16-bit layouts only (their float marcher walks by it).
+  dist_.assign(compact ? size_t(nBricks) * 8 : 0, 0);
+  for (int oct = 0; oct < (compact ? 8 : 0); ++oct) {
+    const int s0 = oct & 1 ? -1 : 1, s1 = oct & 2 ? -1 : 1, s2 = oct & 4 ? -1 : 1;
+    const auto at = [&](int i, int j, int k) -> int {
+      if (i < 0 || j < 0 || k < 0 || i >= nb[0] || j >= nb[1] || k >= nb[2]) return 255;
+      return dist_[size_t((int64_t(k) * nb[1] + j) * nb[0] + i) * 8 + oct];
+    };
+    for (int kk = 0; kk < nb[2]; ++kk)
+      for (int jj = 0; jj < nb[1]; ++jj)
+        for (int ii = 0; ii < nb[0]; ++ii) {
+          // The neighbours ahead first: ascending against the octant's sign.
+          const int i = s0 > 0 ? nb[0] - 1 - ii : ii, j = s1 > 0 ? nb[1] - 1 - jj : jj, k = s2 > 0 ? nb[2] - 1 - kk : kk;
+          const int64_t bidx = (int64_t(k) * nb[1] + j) * nb[0] + i;
+          if (l0.occ[size_t(bidx)]) continue;  // 0
+          int m = 255;
+          for (int c = 1; c < 8; ++c) m = std::min(m, at(i + (c & 1) * s0, j + ((c >> 1) & 1) * s1, k + (c >> 2) * s2));
+          dist_[size_t(bidx) * 8 + oct] = uint8_t(std::min(255, m + 1));
+        }
+  }
+
   // Matrix-tree levels above the bricks: level l+1 node = OR of its 2x2x2 children.
   while (levels_.back().n[0] > 1 || levels_.back().n[1] > 1 || levels_.back().n[2] > 1) {
     const LevelGrid& c = levels_.back();
@@ -225,7 +249,7 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
                                   ? vox_.bytes()
                                   : brickPtr_.size() * sizeof(uint32_t) + b8_.size() + b16_.size() * sizeof(uint16_t) +
                                         cellMask_.size() * sizeof(uint64_t);
-  s.bytes = voxelBytes + (brickMin_.size() + brickMax_.size()) * sizeof(float) + levelBytes;
+  s.bytes = voxelBytes + (brickMin_.size() + brickMax_.size()) * sizeof(float) + levelBytes + dist_.size();
   s.denseBytes = s.voxels * sizeof(float);
   s.levels = levelCount();
   s.buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -283,6 +307,7 @@ struct Frame {
   float threshold;
   int lanes;         // 8: the unshaded UInt8/UInt16 float rays take the AVX2 marcher; 1: the SSE2 one
   bool setup4;       // perspective rays are set up 4 at a time with AVX2 (setupRays4: the same rays)
+  const uint8_t* dist;        // BlockSparseVolume::brickDistances
   const uint32_t* runBricks;  // AVX2 marcher: per level-0 brick its stored brick where the walk may
                               // march through it, MT_NULL where it stops (absent; skipping: invisible)
   double spacing[3];
@@ -647,6 +672,12 @@ inline void apronCorners(const uint16_t* p, __m128& lo, __m128& hi) {
   hi = _mm_cvtepi32_ps(_mm_unpacklo_epi16(v1, z));
 }
 
+/// x * s per 32-bit lane for s in {-1, 1} (SSE2 has no pmulld): x, or -x where s is -1.
+inline __m128i _mm_mullo_epi32_sse2(__m128i x, __m128i s) {
+  const __m128i neg = _mm_srai_epi32(s, 31);
+  return _mm_sub_epi32(_mm_xor_si128(x, neg), neg);
+}
+
 /// Per-ray constants of the UInt8/UInt16 float marchers: sample k sits at P0 + k S, each axis in
 /// float (a multiply, then an add: never fused, so every marcher and the OpenCL kernel agree).
 struct ApronRay {
@@ -654,6 +685,8 @@ struct ApronRay {
   __m128 P0, S;
   __m128 nf;     // points per axis (float; 1 in lane 3)
   __m128i nm2;   // the last cell per axis, n - 2 (0 in lane 3)
+  __m128i sign;  // per axis -1 where the ray runs towards lower indices, else 1 (1 in lane 3)
+  int octant;    // bit a set: negative along axis a (BlockSparseVolume::brickDistances)
   ApronRay() = default;
   ApronRay(const Frame& F, const double o[3], const double d[3], double t0) { set(F, o, d, t0); }
   void set(const Frame& F, const double o[3], const double d[3], double t0) {
@@ -665,6 +698,8 @@ struct ApronRay {
     S = _mm_setr_ps(Ss[0], Ss[1], Ss[2], 0.f);
     nf = _mm_setr_ps(float(F.n[0]), float(F.n[1]), float(F.n[2]), 1.f);
     nm2 = _mm_setr_epi32(F.n[0] - 2, F.n[1] - 2, F.n[2] - 2, 0);
+    octant = (Ss[0] < 0 ? 1 : 0) | (Ss[1] < 0 ? 2 : 0) | (Ss[2] < 0 ? 4 : 0);
+    sign = _mm_setr_epi32(Ss[0] < 0 ? -1 : 1, Ss[1] < 0 ? -1 : 1, Ss[2] < 0 ? -1 : 1, 1);
   }
   __m128 at(float kf) const { return _mm_add_ps(P0, _mm_mul_ps(_mm_set1_ps(kf), S)); }
   /// clampCell's cells of a position's three coordinates at once, in float (exact: the input is a
@@ -686,37 +721,35 @@ struct ApronRay {
 /// ancestor; without: the absent brick) and k moves to the last sample at or before the node's
 /// exit (floor, as march(); at least k + 1).
 template <typename T, bool Skip>
-inline bool apronEnter(const Frame& F, const ApronRay& ray, int levels, int64_t kEnd, ApronFetch<T>& fetch,
+inline bool apronEnter(const Frame& F, const ApronRay& ray, int64_t kEnd, ApronFetch<T>& fetch,
                        int64_t& k, uint64_t& skips, int o[3]) {
-  const BlockSparseVolume& vol = *F.vol;
-  const __m128i cellv = _mm_srai_epi32(ray.cells(ray.at(float(k))), LOG2DIM);
-  const int bi = _mm_cvtsi128_si32(cellv), bj = _mm_cvtsi128_si32(_mm_shuffle_epi32(cellv, 0x55)),
-            bk = _mm_cvtsi128_si32(_mm_shuffle_epi32(cellv, 0xAA));
-  int empty = Skip ? coarsestInvisible(vol, levels, bi, bj, bk) : -1;
-  if (empty < 0 && !fetch.enter(bi, bj, bk)) empty = 0;  // visible, but no brick stored
-  if (empty < 0) {
+  const __m128i brick = _mm_srai_epi32(ray.cells(ray.at(float(k))), LOG2DIM);
+  const int bi = _mm_cvtsi128_si32(brick), bj = _mm_cvtsi128_si32(_mm_shuffle_epi32(brick, 0x55)),
+            bk = _mm_cvtsi128_si32(_mm_shuffle_epi32(brick, 0xAA));
+  int r = Skip ? F.dist[((size_t(bk) * F.nb[1] + bj) * F.nb[0] + bi) * 8 + ray.octant] : 0;
+  if (r == 0 && !fetch.enter(bi, bj, bk)) r = 1;  // visible, but no brick stored
+  if (r == 0) {
     o[0] = bi << LOG2DIM;
     o[1] = bj << LOG2DIM;
     o[2] = bk << LOG2DIM;
     return true;
   }
-  const double edge = double(DIM << empty);
-  const int node[3] = {bi >> empty, bj >> empty, bk >> empty};
+  // The cube of r^3 invisible bricks from b towards the ray's octant: its far faces.
+  const int node[3] = {bi, bj, bk};
   double kx = std::numeric_limits<double>::infinity();
   for (int a = 0; a < 3; ++a) {
-    const double lo = node[a] * edge, s = double(ray.Ss[a]);
-    if (s > 0) kx = std::min(kx, (lo + edge - double(ray.P0s[a])) / s);
-    else if (s < 0) kx = std::min(kx, (lo - double(ray.P0s[a])) / s);
+    const double s = double(ray.Ss[a]);
+    if (s > 0) kx = std::min(kx, (double((node[a] + r) * DIM) - double(ray.P0s[a])) / s);
+    else if (s < 0) kx = std::min(kx, (double((node[a] - r + 1) * DIM) - double(ray.P0s[a])) / s);
   }
   const double kf = std::floor(kx);
   const int64_t kLast = kf >= double(kEnd) ? kEnd : std::max<int64_t>(k, static_cast<int64_t>(kf));
   if (Skip) ++skips;
   if (kLast > k) {
-    // The exit is rounded down, so sample kLast is usually still in the node: then the next step
-    // would find this node again (its ancestors above it are visible), the same kLast, count one
-    // more skip and move on by one sample. Done here without the second lookup.
-    const __m128i at = _mm_srai_epi32(ray.cells(ray.at(float(kLast))), LOG2DIM + empty);
-    if ((_mm_movemask_epi8(_mm_cmpeq_epi32(at, _mm_setr_epi32(node[0], node[1], node[2], 0))) & 0xFFF) == 0xFFF) {
+    // The exit is rounded down, so sample kLast is usually still in the cube (its brick at most
+    // r - 1 ahead on every axis): then it is skipped too, counted as one more skip.
+    const __m128i ahead = _mm_mullo_epi32_sse2(_mm_sub_epi32(_mm_srai_epi32(ray.cells(ray.at(float(kLast))), LOG2DIM), brick), ray.sign);
+    if ((_mm_movemask_epi8(_mm_cmpgt_epi32(ahead, _mm_set1_epi32(r - 1))) & 0xFFF) == 0) {
       if (Skip) ++skips;
       k = kLast + 1;
       return false;
@@ -766,11 +799,10 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
   const int tlast = F.tlast;
   const float* const table = F.table;
   const float offset = F.offset;
-  const int levels = F.vol->levelCount();
   int64_t k = 0;
   while (k <= kEnd) {
     int bo[3];
-    if (!apronEnter<T, Skip>(F, ray, levels, kEnd, fetch, k, skips, bo)) continue;
+    if (!apronEnter<T, Skip>(F, ray, kEnd, fetch, k, skips, bo)) continue;
     const __m128i org = _mm_setr_epi32(bo[0], bo[1], bo[2], 0);
     const __m128i lim = _mm_setr_epi32(std::min(DIM - 1, F.n[0] - 2 - bo[0]), std::min(DIM - 1, F.n[1] - 2 - bo[1]),
                                        std::min(DIM - 1, F.n[2] - 2 - bo[2]), 0);
@@ -1039,7 +1071,7 @@ struct Avx2RayMarch {
       // The walk: to the first sample in a stored visible brick (or one that needs clamping).
       if (k > kEnd) return finish(samplesOut, skipsOut);
       int bo[3];
-      if (!apronEnter<T, Skip>(Fr, ray, Fr.vol->levelCount(), kEnd, fetch, k, skips, bo)) return true;
+      if (!apronEnter<T, Skip>(Fr, ray, kEnd, fetch, k, skips, bo)) return true;
       kf = float(k);
       avx2Chunk(R, kf, kEnd - k, cur);
       if (cur.n == 0) {  // sample k needs clamping: the general path
@@ -1626,6 +1658,7 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   F.offset = vol.storageOffset();
   F.dt = opt.sampleDistance;
   F.threshold = earlyTerminationThreshold(opt);
+  F.dist = vol.brickDistances().data();
   F.ambient = opt.ambient;
   F.diffuse = opt.diffuse;
   F.specular = opt.specular;

@@ -221,6 +221,12 @@ class BlockSparseVolume {
     return g.occ[(size_t(k) * g.n[1] + j) * g.n[0] + i] != 0;
   }
   int levelCount() const { return static_cast<int>(levels_.size()); }
+  /// Per level-0 brick b (x fastest), 8 bytes, one per octant o of directions (bit a of o set:
+  /// negative along axis a): 0 where b holds a visible cell, else the edge r (at most 255) of the
+  /// largest cube of invisible bricks with b at its corner and extending from it towards octant o
+  /// (bricks b + (i, j, k), 0 <= i, j, k < r, signs of o; the grid's outside counts as invisible).
+  /// A ray in b going that way leaves the cube in one step of the walk.
+  const std::vector<uint8_t>& brickDistances() const { return dist_; }
   int levelDim(int level, int a) const { return levels_[level].n[a]; }
   /// Per-brick value range [min, max] over the brick's cells' corners (level-0 index).
   float brickMin(int i, int j, int k) const { return brickMin_[(size_t(k) * levels_[0].n[1] + j) * levels_[0].n[0] + i]; }
@@ -245,6 +251,7 @@ class BlockSparseVolume {
   const uint32_t* ptr_ = nullptr;
   const float* data_ = nullptr;
   std::vector<LevelGrid> levels_;
+  std::vector<uint8_t> dist_;
   std::vector<float> brickMin_, brickMax_;
   float vmin_ = 0, vmax_ = 0;
   VolumeStats stats_;
