@@ -300,6 +300,8 @@ struct Frame {
   int n[3];          // points per axis
   int nb[3];         // level-0 bricks per axis
   const float* table;  // premultiplied, opacity corrected for the step: 4 per entry, 16-byte aligned
+  const float* table8;  // AVX2 marcher: 8 per entry, the 4 above and 1 - opacity 4 times (the factor
+                        // of the transmittance, computed once per frame instead of per sample), 32-byte aligned
   float tlo, tscale;
   int tlast;
   float offset;      // added to an interpolated stored value
@@ -942,7 +944,7 @@ struct Avx2Ray {  // scalars, broadcast where used (a load each, like a vector c
 /// One chunk of 8 consecutive samples k..k+7 (kf = k as a float): how many leading lanes are
 /// taken (n: the cell needs no clamping, its brick is stored and visible, and the sample is one of
 /// the ray's, i.e. lane <= left = kEnd - k), which of those lanes' cells are visible (vis), and
-/// each lane's table entry offset (idx; the all-zero entry for an invisible cell). Only computed
+/// each lane's offset into Frame::table8 (idx; the all-zero entry for an invisible cell). Only computed
 /// when vis != 0.
 struct Avx2Chunk {
   int n;
@@ -1006,9 +1008,10 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
   const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), _mm256_set1_ps(R.offset));
   const __m256i raw = _mm256_cvttps_epi32(
       _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, _mm256_set1_ps(R.tlo)), _mm256_set1_ps(R.tscale)), _mm256_set1_ps(0.5f)));
-  // Entry offsets; an invisible cell reads the all-zero entry renderVolume appends to the
-  // table: C + T * 0 = C and T * (1 - 0) = T exactly, as when marchApron skips the cell.
-  const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), _mm256_set1_epi32(R.tlast)), 2);
+  // Entry offsets into Frame::table8 (8 floats an entry); an invisible cell reads the all-zero
+  // entry renderVolume appends to the table (1 - 0 = 1 in its second half): C + T * 0 = C and
+  // T * 1 = T exactly, as when marchApron skips the cell.
+  const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), _mm256_set1_epi32(R.tlast)), 3);
   const __m256 zeroEntry = _mm256_castsi256_ps(_mm256_set1_epi32(R.zeroEntry));
   out.idx = _mm256_castps_si256(_mm256_blendv_ps(zeroEntry, _mm256_castsi256_ps(e4), vbit));
 }
@@ -1049,7 +1052,7 @@ struct Avx2RayMarch {
     R.nb0 = Fr.nb[0], R.nb1 = Fr.nb[1];
     R.tlo = Fr.tlo, R.tscale = Fr.tscale, R.offset = Fr.offset;
     R.tlast = Fr.tlast;
-    R.zeroEntry = 4 * (Fr.tlast + 1);
+    R.zeroEntry = 8 * (Fr.tlast + 1);
     R.bricks = reinterpret_cast<const int*>(Fr.runBricks);
     R.words = reinterpret_cast<const int*>(fetch.masks);
     R.data = fetch.data;
@@ -1094,8 +1097,7 @@ struct Avx2RayMarch {
     int64_t kr = k;
     float kfr = kf;
     Avx2Chunk c = cur;
-    const float* const table = Fr.table;
-    const __m128 one = _mm_set1_ps(1.f);
+    const float* const table = Fr.table8;
     const float Tm = Tmin;
     const int64_t ke = kEnd;
     alignas(32) int32_t idx[8];
@@ -1111,9 +1113,9 @@ struct Avx2RayMarch {
         // only then is the chunk composited again from its start, lane by lane with the test.
         const __m128 C0 = Cr, T0 = Tr;
         const auto add = [&](int j) __attribute__((always_inline)) {
-          const float* e = table + idx[j];
-          Cr = _mm_add_ps(Cr, _mm_mul_ps(Tr, _mm_loadu_ps(e)));
-          Tr = _mm_mul_ps(Tr, _mm_sub_ps(one, _mm_set1_ps(e[3])));
+          const float* e = table + idx[j];  // colour and opacity, then 1 - opacity 4 times
+          Cr = _mm_add_ps(Cr, _mm_mul_ps(Tr, _mm_load_ps(e)));
+          Tr = _mm_mul_ps(Tr, _mm_load_ps(e + 4));
         };
         if (n == 8) {
           for (int j = 0; j < 8; ++j) add(j);
@@ -1652,6 +1654,7 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
     F.spacing[a] = geo.spacing[a];
   }
   F.table = table.data();
+  F.table8 = nullptr;
   F.tlo = tf.indexLo();
   F.tscale = tf.indexScale();
   F.tlast = tf.lastIndex();
@@ -1674,6 +1677,19 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
                          uint64_t(vol.stats().bricks) * 2 * DIM < (uint64_t(1) << 31);
   F.setup4 = opt.vectorized && !forceSse2 && cpuHasAvx2();
   F.lanes = apron && !opt.doublePrecision && !opt.shade && indexable && opt.vectorized && !forceSse2 && cpuHasAvx2() ? 8 : 1;
+  // The AVX2 marcher's table: entry e at float 8 e, 32-byte aligned. 1 - a is the same float
+  // operation the SSE2 marcher does per sample, so the transmittance gets the same bits.
+  std::vector<float> table8Store;
+  if (F.lanes == 8) {
+    const size_t ne = table.size() / 4;  // with the all-zero entry
+    table8Store.assign(ne * 8 + 8, 0.f);
+    float* t8 = table8Store.data() + (8 - (reinterpret_cast<uintptr_t>(table8Store.data()) / 4) % 8) % 8;
+    for (size_t e = 0; e < ne; ++e) {
+      for (int c = 0; c < 4; ++c) t8[8 * e + c] = table[4 * e + c];
+      for (int c = 4; c < 8; ++c) t8[8 * e + c] = 1.f - table[4 * e + 3];
+    }
+    F.table8 = t8;
+  }
   // The bricks the AVX2 marcher may march through: the stored ones, but with skipping only the
   // visible ones (all bricks are stored when the volume was built dense).
   std::vector<uint32_t> runBricks;
