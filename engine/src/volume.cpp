@@ -310,7 +310,7 @@ struct Frame {
   int lanes;         // 8: the unshaded UInt8/UInt16 float rays take the AVX2 marcher; 1: the SSE2 one
   bool setup4;       // perspective rays are set up 4 at a time with AVX2 (setupRays4: the same rays)
   const uint8_t* dist;        // BlockSparseVolume::brickDistances
-  const uint32_t* runBricks;  // AVX2 marcher: per level-0 brick its stored brick where the walk may
+  const uint32_t* runBricks;  // AVX2 marcher: per level-0 brick its stored brick's first entry where the walk may
                               // march through it, MT_NULL where it stops (absent; skipping: invisible)
   double spacing[3];
   double ambient, diffuse, specular, specularPower;
@@ -913,19 +913,18 @@ MT_AVX2 __attribute__((always_inline)) inline void gatherCorners(const Paired8* 
   }
 }
 
-/// Entry of corner 0 of local cell (lx, ly, lz) of stored brick ptr, bit = lx + 8 ly + 64 lz
-/// (ApronLayout, 8 lanes). 9^3 entries: ptr 729 + lx + 9 ly + 81 lz = ... + bit + ly + 17 lz;
-/// Paired8: ptr BRICK_BYTES8 + 2 lx + 18 ly + 144 lz = ... + 2 (bit + ly + 8 lz).
+/// Entry of corner 0 of local cell (lx, ly, lz) of the stored brick whose first entry is `first`
+/// (Frame::runBricks), bit = lx + 8 ly + 64 lz (ApronLayout, 8 lanes). 9^3 entries: first + lx +
+/// 9 ly + 81 lz = first + bit + ly + 17 lz; Paired8: first + 2 lx + 18 ly + 144 lz = first + 2 (bit +
+/// ly + 8 lz).
 template <typename T>
-MT_AVX2 __attribute__((always_inline)) inline __m256i cornerEntry(const T*, __m256i ptr, __m256i bit, __m256i ly,
+MT_AVX2 __attribute__((always_inline)) inline __m256i cornerEntry(const T*, __m256i first, __m256i bit, __m256i ly,
                                                                  __m256i lz) {
-  return _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(BlockSparseVolume::BRICK_VOLUME)),
-                          _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz))));
+  return _mm256_add_epi32(first, _mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_add_epi32(_mm256_slli_epi32(lz, 4), lz))));
 }
-MT_AVX2 __attribute__((always_inline)) inline __m256i cornerEntry(const Paired8*, __m256i ptr, __m256i bit, __m256i ly,
+MT_AVX2 __attribute__((always_inline)) inline __m256i cornerEntry(const Paired8*, __m256i first, __m256i bit, __m256i ly,
                                                                  __m256i lz) {
-  return _mm256_add_epi32(_mm256_mullo_epi32(ptr, _mm256_set1_epi32(BlockSparseVolume::BRICK_BYTES8)),
-                          _mm256_slli_epi32(_mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_slli_epi32(lz, 3))), 1));
+  return _mm256_add_epi32(first, _mm256_slli_epi32(_mm256_add_epi32(bit, _mm256_add_epi32(ly, _mm256_slli_epi32(lz, 3))), 1));
 }
 
 /// The per-ray constants of marchApronAvx2's chunks (broadcast once per ray).
@@ -1690,16 +1689,21 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
     }
     F.table8 = t8;
   }
-  // The bricks the AVX2 marcher may march through: the stored ones, but with skipping only the
-  // visible ones (all bricks are stored when the volume was built dense).
+  // The bricks the AVX2 marcher may march through, as the entry of their first voxel (stored brick
+  // times the brick's entries: no multiply between the gather of it and the corner gathers): the
+  // stored ones, but with skipping only the visible ones (all bricks are stored when the volume
+  // was built dense); MT_NULL elsewhere.
   std::vector<uint32_t> runBricks;
-  F.runBricks = apron ? vol.brickPointers().data() : nullptr;
-  if (F.lanes == 8 && opt.emptySpaceSkipping && vol.stats().bricksStored != vol.stats().bricksVisible) {
+  F.runBricks = nullptr;
+  if (F.lanes == 8) {
+    const uint32_t entries = vol.pairedRows() ? BlockSparseVolume::BRICK_BYTES8 : BlockSparseVolume::BRICK_VOLUME;
     runBricks = vol.brickPointers();
     for (int k = 0; k < F.nb[2]; ++k)
       for (int j = 0; j < F.nb[1]; ++j)
-        for (int i = 0; i < F.nb[0]; ++i)
-          if (!vol.nodeVisible(0, i, j, k)) runBricks[(size_t(k) * F.nb[1] + j) * F.nb[0] + i] = MT_NULL;
+        for (int i = 0; i < F.nb[0]; ++i) {
+          uint32_t& b = runBricks[(size_t(k) * F.nb[1] + j) * F.nb[0] + i];
+          if (b != MT_NULL) b = opt.emptySpaceSkipping && !vol.nodeVisible(0, i, j, k) ? MT_NULL : b * entries;
+        }
     F.runBricks = runBricks.data();
   }
 
