@@ -932,7 +932,7 @@ template <typename T>
 struct Avx2Ray {  // scalars, broadcast where used (a load each, like a vector constant's)
   float P0x, P0y, P0z, Sx, Sy, Sz;
   int mx, my, mz;  // n - 2 per axis: cells that need no clamping are 0..n-2
-  int nb0, nb1;    // level-0 bricks along x, y
+  int nb0, nb01;   // level-0 bricks along x, in an xy layer
   float tlo, tscale, offset;
   int tlast, zeroEntry;
   const int* bricks;  // F.runBricks: MT_NULL (-1) where the walk takes over
@@ -970,10 +970,11 @@ MT_AVX2 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R
       _mm256_cmpeq_epi32(_mm256_min_epu32(iz, mz), iz));
   // Level-0 brick of each cell (brick 0 where the cell needs clamping: read, then ignored).
   const __m256i bz = _mm256_srli_epi32(iz, LOG2DIM), by = _mm256_srli_epi32(iy, LOG2DIM), bx = _mm256_srli_epi32(ix, LOG2DIM);
+  // bx + nb0 by + nb0 nb1 bz: the two products side by side, not nested (the index is on the
+  // path to every gather).
   const __m256i b = _mm256_and_si256(
-      inside, _mm256_add_epi32(_mm256_mullo_epi32(_mm256_add_epi32(_mm256_mullo_epi32(bz, _mm256_set1_epi32(R.nb1)), by),
-                                                  _mm256_set1_epi32(R.nb0)),
-                               bx));
+      inside, _mm256_add_epi32(_mm256_add_epi32(_mm256_mullo_epi32(bz, _mm256_set1_epi32(R.nb01)), bx),
+                               _mm256_mullo_epi32(by, _mm256_set1_epi32(R.nb0))));
   const __m256i ptr = _mm256_i32gather_epi32(R.bricks, b, 4);
   // Visible-cell bit of each cell (clamped lanes read brick 0's, ignored): word 16 b + bit / 32
   // of the masks, issued without waiting for the brick pointers; shifted into the sign bit.
@@ -1048,7 +1049,7 @@ struct Avx2RayMarch {
     R.P0x = ray.P0s[0], R.P0y = ray.P0s[1], R.P0z = ray.P0s[2];
     R.Sx = ray.Ss[0], R.Sy = ray.Ss[1], R.Sz = ray.Ss[2];
     R.mx = Fr.n[0] - 2, R.my = Fr.n[1] - 2, R.mz = Fr.n[2] - 2;
-    R.nb0 = Fr.nb[0], R.nb1 = Fr.nb[1];
+    R.nb0 = Fr.nb[0], R.nb01 = Fr.nb[0] * Fr.nb[1];
     R.tlo = Fr.tlo, R.tscale = Fr.tscale, R.offset = Fr.offset;
     R.tlast = Fr.tlast;
     R.zeroEntry = 8 * (Fr.tlast + 1);
