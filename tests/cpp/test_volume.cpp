@@ -288,6 +288,48 @@ TEST(BlockSparseVolume, MemoryIsTheVisibleBlocksPlusTenPercent) {
   EXPECT_EQ(needed, s.blocksAllocated);
 }
 
+TEST(BlockSparseVolume, EmptyCubesHoldNoVisibleBrickAndAreLargest) {
+  // brickDistances (8/16-bit layouts): per brick and octant, the edge r of the largest cube of
+  // invisible bricks with the brick at its corner, extending towards the octant (the grid's
+  // outside counts as invisible). Checked against the level-0 occupancy by brute force.
+  const Dense d = blobs(83, 61, 70, 11);
+  std::vector<uint8_t> bytes(d.v.size());
+  for (size_t i = 0; i < d.v.size(); ++i) bytes[i] = uint8_t(std::min(255.f, d.v[i] * 2.5f));
+  const TransferTable tf = rampTable(0, 255, 0.3, 0.5);
+  BlockSparseVolume vol;
+  vol.build(bytes.data(), d.n, tf);
+  ASSERT_EQ(vol.storage(), VoxelStorage::UInt8);
+  const int nb[3] = {vol.levelDim(0, 0), vol.levelDim(0, 1), vol.levelDim(0, 2)};
+  const std::vector<uint8_t>& dist = vol.brickDistances();
+  ASSERT_EQ(dist.size(), size_t(nb[0]) * nb[1] * nb[2] * 8);
+  // Whether the cube of edge e from brick (i, j, k) towards octant o holds a visible brick.
+  const auto holdsVisible = [&](int i, int j, int k, int o, int e) {
+    for (int c = 0; c < e; ++c)
+      for (int b = 0; b < e; ++b)
+        for (int a = 0; a < e; ++a) {
+          const int x = i + (o & 1 ? -a : a), y = j + (o & 2 ? -b : b), z = k + (o & 4 ? -c : c);
+          if (x >= 0 && y >= 0 && z >= 0 && x < nb[0] && y < nb[1] && z < nb[2] && vol.nodeVisible(0, x, y, z))
+            return true;
+        }
+    return false;
+  };
+  int checked = 0, large = 0;
+  for (int k = 0; k < nb[2]; ++k)
+    for (int j = 0; j < nb[1]; ++j)
+      for (int i = 0; i < nb[0]; ++i)
+        for (int o = 0; o < 8; ++o) {
+          const int r = dist[((size_t(k) * nb[1] + j) * nb[0] + i) * 8 + o];
+          ASSERT_EQ(r == 0, vol.nodeVisible(0, i, j, k)) << i << " " << j << " " << k;
+          if (r == 0) continue;
+          EXPECT_FALSE(holdsVisible(i, j, k, o, std::min(r, 16))) << i << " " << j << " " << k << " octant " << o;
+          if (r < 16) EXPECT_TRUE(holdsVisible(i, j, k, o, r + 1)) << i << " " << j << " " << k << " octant " << o;
+          ++checked;
+          large += r > 1;
+        }
+  EXPECT_GT(checked, 100) << "the blobs should leave bricks empty";
+  EXPECT_GT(large, 10) << "some empty cubes should be larger than a brick";
+}
+
 TEST(BlockSparseVolume, TransparentTransferFunctionAllocatesNothing) {
   const Dense d = blobs(20, 20, 20, 5);
   BlockSparseVolume vol;
