@@ -16,7 +16,10 @@
 //                      block holding a corner of a visible cell is allocated, nothing else.
 //                      Above the blocks, the matrix-tree levels: level 0 marks the bricks of
 //                      DIM^3 cells that hold a visible cell, level l groups 2^l x 2^l x 2^l bricks
-//                      (an implicit octree: parents are computed, not stored).
+//                      (an implicit octree: parents are computed, not stored). The 8/16-bit
+//                      layouts also hold, per level-0 brick and ray octant, the largest cube of
+//                      invisible bricks with that brick at its corner, extending the way the ray
+//                      goes (brickDistances).
 //   TransferTable      post-classification lookup table (colour + opacity per unit length) with
 //                      O(1) range-max opacity queries (a sparse table), used to classify cells.
 //   renderVolume       ray marching with trilinear interpolation, front-to-back compositing with
@@ -24,7 +27,11 @@
 //                      early ray termination, optional gradient shading, hierarchical empty-space
 //                      skipping, OpenMP over 8x8-pixel tiles (in groups of 4x4). A ray is walked brick by brick: on
 //                      entry the brick's storage is resolved once, then samples inside it need no
-//                      clamping, no bounds checks and no pointer-matrix reads.
+//                      clamping, no bounds checks and no pointer-matrix reads. In an invisible
+//                      brick the walk leaves, in one step, the coarsest empty octree node (Float32
+//                      layout, double accumulation) or the brick's empty cube for the ray's octant
+//                      (8/16-bit layouts in float: it starts at the ray's own brick and extends
+//                      only ahead, so it reaches further than an aligned octree node does).
 //
 // Exactness of the skipping: a cell that is not visible yields opacity exactly 0 at every sample
 // (the interpolated value lies in [min, max] of the corners up to round-off, the table lookup is
