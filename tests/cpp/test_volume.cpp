@@ -322,7 +322,9 @@ TEST(BlockSparseVolume, EmptyCubesHoldNoVisibleBrickAndAreLargest) {
           ASSERT_EQ(r == 0, vol.nodeVisible(0, i, j, k)) << i << " " << j << " " << k;
           if (r == 0) continue;
           EXPECT_FALSE(holdsVisible(i, j, k, o, std::min(r, 16))) << i << " " << j << " " << k << " octant " << o;
-          if (r < 16) EXPECT_TRUE(holdsVisible(i, j, k, o, r + 1)) << i << " " << j << " " << k << " octant " << o;
+          if (r < 16) {
+            EXPECT_TRUE(holdsVisible(i, j, k, o, r + 1)) << i << " " << j << " " << k << " octant " << o;
+          }
           ++checked;
           large += r > 1;
         }
