@@ -10,6 +10,8 @@
  *   - empty-space skipping over the matrix-tree levels above the bricks: the coarsest empty
  *     ancestor of the sample's brick is left at the last sample at or before its exit, so
  *     samples sit at t0 + k*dt with and without skipping (renderVolume's rule, bit for bit);
+ *     the 8/16-bit float marchers leave instead the brick's empty cube for the ray's octant
+ *     (BlockSparseVolume::brickDistances, uploaded as `dist`), as marchApron does;
  *   - optional gradient shading (headlight, two-sided), as renderVolume's Shade path.
  * Shading uses float division, sqrt and pow, whose OpenCL precision is a few ulp rather than
  * correctly rounded: shaded images agree with the CPU's to ~1e-6, unshaded ones bit for bit on
