@@ -19,6 +19,7 @@
 #include "vtkPolyData.h"
 
 #include "mtree/builder.h"
+#include "mtree/cell_eval.h"
 #include "mtree/cells.h"
 #include "mtree/segment_filter.h"
 #include "mtree/opencl.h"
@@ -117,8 +118,10 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
 // vtkDataSet::GetCell (the copy holds the dataset's values exactly: doubles, or floats where every
 // coordinate is one), without touching VTK's own connectivity and point arrays — for a random
 // query those are a second set of cache misses on data the scan has just read. Linear types
-// only; the others (and a cell needing VTK's initialisation) go through GetCell.
-void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType id, vtkGenericCell* cell)
+// only; the others (and a cell needing VTK's initialisation) go through GetCell. `pts`, when
+// given, are the cell's coordinates already read from the copy (3 doubles per point).
+void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType id, vtkGenericCell* cell,
+  const double* pts = nullptr)
 {
   const uint8_t type = in.Cells.type(static_cast<size_t>(id));
   if (type < VTK_VERTEX || type > VTK_PYRAMID)
@@ -126,21 +129,66 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
     ds->GetCell(id, cell);
     return;
   }
+  // VTK_VERTEX ... VTK_PYRAMID need no initialisation and have no explicit faces (only
+  // polyhedra and the higher-order types do), so the generic cell's type is all there is to set.
   cell->SetCellType(type);
-  if (cell->RequiresInitialization() || cell->RequiresExplicitFaceRepresentation())
-  {
-    ds->GetCell(id, cell);
-    return;
-  }
   const vtkIdType n = static_cast<vtkIdType>(in.Cells.numCellPoints(static_cast<size_t>(id)));
   const uint32_t* pid = in.Cells.cellPointIds(static_cast<size_t>(id));
-  cell->PointIds->SetNumberOfIds(n);
-  cell->Points->SetNumberOfPoints(n);
+  if (cell->PointIds->GetNumberOfIds() != n)
+  {
+    cell->PointIds->SetNumberOfIds(n);
+  }
+  vtkIdType* ids = cell->PointIds->GetPointer(0);
   for (vtkIdType k = 0; k < n; ++k)
   {
-    cell->PointIds->SetId(k, static_cast<vtkIdType>(pid[k]));
+    ids[k] = static_cast<vtkIdType>(pid[k]);
+  }
+  // The coordinates straight into the cell's double array (n virtual SetTuple calls otherwise);
+  // Modified() as SetNumberOfPoints does, so the points' MTime moves as before.
+  vtkDoubleArray* xyz = vtkDoubleArray::FastDownCast(cell->Points->GetData());
+  if (!xyz || xyz->GetNumberOfComponents() != 3 || xyz->GetNumberOfTuples() != n)
+  {
+    cell->Points->SetNumberOfPoints(n);
+    xyz = vtkDoubleArray::FastDownCast(cell->Points->GetData());
+  }
+  else
+  {
+    cell->Points->Modified();
+  }
+  if (!xyz)
+  {
+    for (vtkIdType k = 0; k < n; ++k)
+    {
+      const mtree::Vec3 p = in.Cells.cellPoint(static_cast<size_t>(id), k);
+      cell->Points->SetPoint(k, p.x, p.y, p.z);
+    }
+    return;
+  }
+  double* out = xyz->GetPointer(0);
+  if (pts)
+  {
+    std::copy(pts, pts + 3 * n, out);
+    return;
+  }
+  for (vtkIdType k = 0; k < n; ++k)
+  {
     const mtree::Vec3 p = in.Cells.cellPoint(static_cast<size_t>(id), k);
-    cell->Points->SetPoint(k, p.x, p.y, p.z);
+    out[3 * k] = p.x;
+    out[3 * k + 1] = p.y;
+    out[3 * k + 2] = p.z;
+  }
+}
+
+// Cell `id`'s points from the engine's copy into pts (3 doubles each); at most n points.
+inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, double* pts)
+{
+  const uint32_t* pid = cells.cellPointIds(id);
+  for (int64_t k = 0; k < n; ++k)
+  {
+    const mtree::Vec3 p = cells.point(pid[k]);
+    pts[3 * k] = p.x;
+    pts[3 * k + 1] = p.y;
+    pts[3 * k + 2] = p.z;
   }
 }
 
@@ -236,7 +284,8 @@ constexpr double kTetraTolerance = 1e-3;
 // MatrixTree::leafFind gives for x: FindCell runs it from the leaf's first candidate, the OpenCL
 // backend from the candidate where the device stopped.
 vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3],
-  const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights)
+  const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights,
+  bool engineEval)
 {
   const MtLeafRange r = in.Tree.leafRange(n);
   const uint32_t* ids = in.Tree.primitiveIndices().data();
@@ -294,7 +343,31 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
         in.Cells.prefetchPoints(cand[j + 2]);
       }
       const vtkIdType id = cand[j];
-      if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+      const uint8_t type = in.Cells.type(id);
+      if (engineEval)
+      {
+        const int64_t np = in.Cells.numCellPoints(id);
+        if (mtree::cellEvaluable(type, np))
+        {
+          // VTK's EvaluatePosition computed here (mtree/cell_eval.h): the same pcoords and
+          // weights, and VTK asked only where a different rounding could change the answer.
+          double pts[3 * mtree::CellSet::kMaxLocalPoints];
+          GatherPoints(in.Cells, id, np, pts);
+          const mtree::PointInCell v = mtree::evaluateLinearCell(type, pts, x, pcoords, weights);
+          if (v == mtree::PointInCell::kOutside)
+          {
+            continue;
+          }
+          FillCell(ds, in, id, cell, pts);
+          if (v == mtree::PointInCell::kInside ||
+            cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
+          {
+            return id;
+          }
+          continue;
+        }
+      }
+      else if (type == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
       {
         continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
       }
@@ -772,7 +845,8 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
   {
     return -1;
   }
-  return ScanCandidates(this->DataSet, in, x, n, in.Tree.leafRange(n).begin, cell, pcoords, weights);
+  return ScanCandidates(
+    this->DataSet, in, x, n, in.Tree.leafRange(n).begin, cell, pcoords, weights, this->EngineCellEvaluation);
 }
 
 #if VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 2, 0)
@@ -1634,7 +1708,9 @@ void vtkMatrixTreeLocator::FindCells(
         {
           ++resumes;
           const mtree::NodeRef leaf = in.Tree.leafFind(mtree::Vec3(x));
-          ids[i] = leaf.exists ? ScanCandidates(this->DataSet, in, x, leaf, k, cell, p, wk.data()) : -1;
+          ids[i] = leaf.exists
+            ? ScanCandidates(this->DataSet, in, x, leaf, k, cell, p, wk.data(), this->EngineCellEvaluation)
+            : -1;
         }
       }
       if (ids[i] < 0)
@@ -1843,6 +1919,7 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
   this->SetBackend(other->Backend);
   this->SetOpenCLDevice(other->OpenCLDevice);
+  this->SetEngineCellEvaluation(other->EngineCellEvaluation);
 }
 
 //------------------------------------------------------------------------------
@@ -1865,6 +1942,7 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LastNumberOfHostResumes: " << this->LastNumberOfHostResumes << "\n";
   os << indent << "LastNumberOfUnconfirmedCells: " << this->LastNumberOfUnconfirmedCells << "\n";
   os << indent << "LastFindCellsPhases: " << this->Internals->FindPhases << "\n";
+  os << indent << "EngineCellEvaluation: " << (this->EngineCellEvaluation ? "On" : "Off") << "\n";
   os << indent << "Built: " << (this->Internals->Valid ? "yes" : "no") << "\n";
   if (this->Internals->Valid)
   {

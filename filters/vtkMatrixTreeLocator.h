@@ -216,6 +216,24 @@ public:
   const char* GetLastFindCellsPhases();
   ///@}
 
+  ///@{
+  /**
+   * How FindCell (and FindCells on the CPU) evaluates its candidate cells. On (default): the
+   * linear volume cells (tetrahedron, voxel, hexahedron, wedge, pyramid) are evaluated by the
+   * engine (mtree/cell_eval.h), which repeats VTK 9.1's EvaluatePosition operation for
+   * operation, so the cell ids, pcoords and weights are VTK's, bit for bit; where a different
+   * rounding could change the answer (a point within 1e-9 of the cell's tolerance boundary, a
+   * Newton step at the convergence threshold, a degenerate cell, a NaN) the cell goes to VTK's
+   * EvaluatePosition, as do all other types. Only the cell that contains the point is filled
+   * into the vtkGenericCell. Off: every candidate is filled and handed to VTK's
+   * EvaluatePosition (the reference the tests compare with). A query setting: it does not mark
+   * the locator modified, so changing it never rebuilds the tree.
+   */
+  void SetEngineCellEvaluation(bool on) { this->EngineCellEvaluation = on; }
+  vtkGetMacro(EngineCellEvaluation, bool);
+  vtkBooleanMacro(EngineCellEvaluation, bool);
+  ///@}
+
   // ---- vtkLocator ----
   /** Builds the tree if the data set or a setting changed since the last build. */
   void BuildLocator() override;
@@ -352,6 +370,7 @@ protected:
   vtkIdType NumberOfOpenCLUploads = 0;
   vtkIdType LastNumberOfHostResumes = 0;
   vtkIdType LastNumberOfUnconfirmedCells = 0;
+  bool EngineCellEvaluation = true;
   vtkMatrixTreeLocatorInternals* Internals;
 
 private:
