@@ -37,6 +37,10 @@
 
 #include "mtree/cells.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace mtree {
 
 /// The engine's answer for a point and a cell: VTK's EvaluatePosition returns 1 (kInside) or 0
@@ -212,6 +216,57 @@ struct Pyramid {
   }
 };
 
+/// The Newton iteration's columns as VTK sums them: f = sum_i p_i w_i, r/s/t = sum_i p_i d_i
+/// (the three derivative blocks), i = 0 ... N-1 in order, each a multiply then an add. VTK does
+/// the twelve sums (4 columns x 3 coordinates) one after another; they are independent, so here
+/// they run two to a SSE2 register: every lane does exactly VTK's sequence of multiplies and
+/// adds (no FMA), so the sums are VTK's bit for bit (newtonColumnsScalar is the plain loop; the
+/// tests compare both with VTK).
+template <int N>
+inline void newtonColumnsScalar(const double* pts, const double* w, const double* d, double f[3], double r[3],
+                                double s[3], double t[3]) {
+  for (int j = 0; j < 3; ++j) f[j] = r[j] = s[j] = t[j] = 0;
+  for (int i = 0; i < N; ++i) {
+    const double* pt = pts + 3 * i;
+    for (int j = 0; j < 3; ++j) {
+      f[j] += pt[j] * w[i];
+      r[j] += pt[j] * d[i];
+      s[j] += pt[j] * d[i + N];
+      t[j] += pt[j] * d[i + 2 * N];
+    }
+  }
+}
+
+template <int N>
+inline void newtonColumns(const double* pts, const double* w, const double* d, double f[3], double r[3], double s[3],
+                          double t[3]) {
+#if defined(__SSE2__)
+  __m128d fxy = _mm_setzero_pd(), rxy = fxy, sxy = fxy, txy = fxy, frz = fxy, stz = fxy;
+  for (int i = 0; i < N; ++i) {
+    const __m128d pxy = _mm_loadu_pd(pts + 3 * i), pz = _mm_set1_pd(pts[3 * i + 2]);
+    fxy = _mm_add_pd(fxy, _mm_mul_pd(pxy, _mm_set1_pd(w[i])));
+    rxy = _mm_add_pd(rxy, _mm_mul_pd(pxy, _mm_set1_pd(d[i])));
+    sxy = _mm_add_pd(sxy, _mm_mul_pd(pxy, _mm_set1_pd(d[i + N])));
+    txy = _mm_add_pd(txy, _mm_mul_pd(pxy, _mm_set1_pd(d[i + 2 * N])));
+    frz = _mm_add_pd(frz, _mm_mul_pd(pz, _mm_set_pd(d[i], w[i])));
+    stz = _mm_add_pd(stz, _mm_mul_pd(pz, _mm_set_pd(d[i + 2 * N], d[i + N])));
+  }
+  _mm_storeu_pd(f, fxy);
+  _mm_storeu_pd(r, rxy);
+  _mm_storeu_pd(s, sxy);
+  _mm_storeu_pd(t, txy);
+  alignas(16) double z[4];
+  _mm_store_pd(z, frz);
+  _mm_store_pd(z + 2, stz);
+  f[2] = z[0];
+  r[2] = z[1];
+  s[2] = z[2];
+  t[2] = z[3];
+#else
+  newtonColumnsScalar<N>(pts, w, d, f, r, s, t);
+#endif
+}
+
 /// VTK's Newton inversion x(pcoords) = x for the isoparametric cell `S` (points `pts`, 3 N
 /// doubles). pcoords and weights as VTK leaves them when the verdict is kInside; kOutside where
 /// VTK returns 0 or -1.
@@ -237,16 +292,8 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
   for (int iteration = 0; !converged && iteration < 10; ++iteration) {
     S::functions(pc, w);
     S::derivs(pc, d);
-    double fcol[3] = {0, 0, 0}, rcol[3] = {0, 0, 0}, scol[3] = {0, 0, 0}, tcol[3] = {0, 0, 0};
-    for (int i = 0; i < N; ++i) {
-      const double* pt = pts + 3 * i;
-      for (int j = 0; j < 3; ++j) {
-        fcol[j] += pt[j] * w[i];
-        rcol[j] += pt[j] * d[i];
-        scol[j] += pt[j] * d[i + N];
-        tcol[j] += pt[j] * d[i + 2 * N];
-      }
-    }
+    double fcol[3], rcol[3], scol[3], tcol[3];
+    newtonColumns<N>(pts, w, d, fcol, rcol, scol, tcol);
     for (int i = 0; i < 3; ++i) fcol[i] -= x[i];
     const double det = det3(rcol, scol, tcol);
     // Degenerate at this iterate, or NaN: VTK decides.
