@@ -46,7 +46,18 @@ struct Tally {
   long long askWhereVtkInside = 0;
 };
 
+// Built with MATRIXTREE_CELL_EVAL_ROUNDING_DIFFERS (by hand, with -mfma -ffp-contract=fast, so
+// that the engine rounds differently from Debian's VTK), the decisions must still be VTK's —
+// that is what the round-off margins are for — while pcoords and weights can only agree to the
+// round-off itself (1e-12 on ordinary cells, up to ~1e-7 on the made-up cells at 1e6 offsets
+// and 3e-3 scale): compared to 1e-6 then.
+#ifdef MATRIXTREE_CELL_EVAL_ROUNDING_DIFFERS
+constexpr double kValueTolerance = 1e-6;
+bool sameBits(double a, double b) { return std::fabs(a - b) <= kValueTolerance; }
+#else
+constexpr double kValueTolerance = 1e-12;
 bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
+#endif
 
 /// One (cell, point) pair: the engine's verdict against VTK's EvaluatePosition. `pts` are the
 /// engine's coordinates of the cell (3 per point), `cell` VTK's cell with the same points.
@@ -74,11 +85,11 @@ void checkPair(vtkCell* cell, const double* pts, const double x[3], Tally& t, co
   ASSERT_EQ(ret, 1) << what << ": the engine says inside, VTK " << ret << "; engine pcoords " << pc[0] << " "
                     << pc[1] << " " << pc[2];
   for (int i = 0; i < 3; ++i) {
-    ASSERT_LE(std::fabs(pc[i] - vpc[i]), 1e-12) << what << ": pcoords[" << i << "]";
+    ASSERT_LE(std::fabs(pc[i] - vpc[i]), kValueTolerance) << what << ": pcoords[" << i << "]";
     ASSERT_TRUE(sameBits(pc[i], vpc[i])) << what << ": pcoords[" << i << "] " << pc[i] << " vs VTK " << vpc[i];
   }
   for (int k = 0; k < n; ++k) {
-    ASSERT_LE(std::fabs(w[k] - vw[k]), 1e-12) << what << ": weights[" << k << "]";
+    ASSERT_LE(std::fabs(w[k] - vw[k]), kValueTolerance) << what << ": weights[" << k << "]";
     ASSERT_TRUE(sameBits(w[k], vw[k])) << what << ": weights[" << k << "] " << w[k] << " vs VTK " << vw[k];
   }
 }
@@ -409,6 +420,9 @@ TEST(CellEval, RegularCellsAreDecidedHere) {
 TEST(CellEval, SimdColumnsEqualTheScalarLoop) {
   // newtonColumns (two sums per SSE2 register) against the plain loop, bit for bit, on random
   // points and coefficients of mixed signs and magnitudes.
+#ifdef MATRIXTREE_CELL_EVAL_ROUNDING_DIFFERS
+  GTEST_SKIP() << "the plain loop is contracted to FMA in this build";
+#endif
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> U(-1, 1), E(-12, 12);
   for (int rep = 0; rep < 2000; ++rep) {

@@ -21,19 +21,24 @@
 //                inside in [-0.001, 1.001].
 //
 // Certain or not (the segment filter's split for rays, segment_filter.h, applied to points): the
-// computation repeats VTK's, so the answer is VTK's whenever both round the same way. An answer
-// is given only where a different rounding could not change it: every acceptance coordinate more
-// than kDecisionMargin (1e-9) from its limit, every Newton step more than 1e-9 of the convergence
-// threshold from it, coordinates away from the divergence bound, the pyramid's apex ratio away
-// from 1e-6, and a well-conditioned cell (|det| > 1e-9 of the cell's size cubed, checked at every
-// Newton step). Everything else — a point on the tolerance boundary, a degenerate, flat or tangled
-// cell, no convergence, a NaN — is kAskVtk: the caller asks VTK's own EvaluatePosition, so the
-// answers never change.
+// computation repeats VTK's, so the answer is VTK's whenever both round the same way, as they do
+// in this build. An answer is given only where a different rounding could not change it: every
+// acceptance coordinate, and every Newton step against the convergence threshold, clear of its
+// limit by kDecisionMargin (1e-9) plus a bound on the round-off (roundoff(): 64 ulp of the
+// coordinates' magnitude through the inverse Jacobian, so cells far from the origin relative to
+// their size, 1e12 offsets, get a wide margin), coordinates away from the divergence bound, the
+// pyramid's apex ratio away from 1e-6, and a well-conditioned cell (|det| > 1e-9 of the cell's
+// size cubed at every Newton step). Everything else — a point on the tolerance boundary, a
+// degenerate, flat or tangled cell, no convergence, a NaN — is kAskVtk: the caller asks VTK's
+// own EvaluatePosition, so the answers never change. test_cell_eval checks the decisions against
+// VTK also when built with FMA contraction (-DMATRIXTREE_CELL_EVAL_ROUNDING_DIFFERS, by hand).
 #pragma once
 
 #include <cmath>
 #include <cstdint>
+#include <algorithm>
 #include <initializer_list>
+#include <limits>
 
 #include "mtree/cells.h"
 
@@ -67,9 +72,10 @@ inline double dist2(const double* a, const double* b) {
 }
 
 /// v in [lo, hi] surely (kInside), surely not (kOutside), or within the margin of a limit.
-inline PointInCell classify(double v, double lo, double hi) {
-  if (v >= lo + kDecisionMargin && v <= hi - kDecisionMargin) return PointInCell::kInside;
-  if (v < lo - kDecisionMargin || v > hi + kDecisionMargin) return PointInCell::kOutside;
+/// m: the margin (kDecisionMargin plus the round-off bound of the computation, roundoff()).
+inline PointInCell classify(double v, double lo, double hi, double m) {
+  if (v >= lo + m && v <= hi - m) return PointInCell::kInside;
+  if (v < lo - m || v > hi + m) return PointInCell::kOutside;
   return PointInCell::kAskVtk;  // also NaN
 }
 
@@ -82,10 +88,30 @@ inline PointInCell conjoin(PointInCell a, PointInCell b) {
 }
 
 /// Is |step| < threshold decided by more than the margin? Sets `below`; false: too close to call.
-inline bool stepIsClear(double step, double threshold, bool& below) {
+/// m: the round-off bound of the step (roundoff()); the threshold's own margin is relative.
+inline bool stepIsClear(double step, double threshold, double m, bool& below) {
   const double a = std::fabs(step);
   below = a < threshold;
-  return std::fabs(a - threshold) > kDecisionMargin * threshold;  // false for NaN
+  return std::fabs(a - threshold) > kDecisionMargin * threshold + m;  // false for NaN
+}
+
+/// The largest coordinate magnitude of x and the cell's n points: the scale of the round-off in
+/// x - p and in the Newton residual.
+inline double magnitude(const double* pts, int n, const double x[3]) {
+  double m = std::max({std::fabs(x[0]), std::fabs(x[1]), std::fabs(x[2])});
+  for (int i = 0; i < 3 * n; ++i) m = std::max(m, std::fabs(pts[i]));
+  return m;
+}
+
+/// How far a parametric coordinate computed here can lie from VTK's if the two round
+/// differently (another compiler, FMA contraction, a VTK built with other flags): the residual
+/// x - X(p) is off by a few ulp of the coordinates' magnitude `mag`, and the solve turns that
+/// into pcoords through the inverse Jacobian, whose size is bounded by L^2 / |det| (L^2 the
+/// cell's squared size; the adjugate's entries are products of two edge vectors). 64 ulp of
+/// headroom. Where both round the same way (this build: no FMA, VTK's operation order) the
+/// answers are equal bit for bit and the margin only costs a VTK call near the limits.
+inline double roundoff(double mag, double size2, double det) {
+  return kDecisionMargin + 64 * std::numeric_limits<double>::epsilon() * mag * size2 / std::fabs(det);
 }
 
 // Interpolation functions and their derivatives (r, s, t blocks of N), as VTK writes them.
@@ -132,9 +158,9 @@ struct Hexahedron {
     d[22] = pc[0] * pc[1];
     d[23] = rm * pc[1];
   }
-  static PointInCell accept(const double pc[3]) {
-    return conjoin(conjoin(classify(pc[0], kLower, kUpper), classify(pc[1], kLower, kUpper)),
-                   classify(pc[2], kLower, kUpper));
+  static PointInCell accept(const double pc[3], double m) {
+    return conjoin(conjoin(classify(pc[0], kLower, kUpper, m), classify(pc[1], kLower, kUpper, m)),
+                   classify(pc[2], kLower, kUpper, m));
   }
 };
 
@@ -171,11 +197,11 @@ struct Wedge {
     d[16] = pc[0];
     d[17] = pc[1];
   }
-  static PointInCell accept(const double pc[3]) {
-    PointInCell v = conjoin(classify(pc[0], -0.001, 1.001), classify(pc[1], -0.001, 1.001));
-    v = conjoin(v, classify(pc[2], -0.001, 1.001));
+  static PointInCell accept(const double pc[3], double m) {
+    PointInCell v = conjoin(classify(pc[0], -0.001, 1.001, m), classify(pc[1], -0.001, 1.001, m));
+    v = conjoin(v, classify(pc[2], -0.001, 1.001, m));
     // r + s <= 1.001: VTK adds, then compares; -inf as the lower limit never decides.
-    return conjoin(v, classify(pc[0] + pc[1], -HUGE_VAL, 1.001));
+    return conjoin(v, classify(pc[0] + pc[1], -HUGE_VAL, 1.001, 2 * m));
   }
 };
 
@@ -210,9 +236,9 @@ struct Pyramid {
     d[13] = -rm * pc[1];
     d[14] = 1.0;
   }
-  static PointInCell accept(const double pc[3]) {
-    return conjoin(conjoin(classify(pc[0], -0.001, 1.001), classify(pc[1], -0.001, 1.001)),
-                   classify(pc[2], -0.001, 1.001));
+  static PointInCell accept(const double pc[3], double m) {
+    return conjoin(conjoin(classify(pc[0], -0.001, 1.001, m), classify(pc[1], -0.001, 1.001, m)),
+                   classify(pc[2], -0.001, 1.001, m));
   }
 };
 
@@ -284,11 +310,13 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
   // |det| <= kConditionRatio * L^3, squared: no pow, no sqrt. A NaN or inf size is never clear.
   const double minDet2 = kConditionRatio * kConditionRatio * longest2 * longest2 * longest2;
   if (!(minDet2 < HUGE_VAL)) return PointInCell::kAskVtk;
+  const double mag = magnitude(pts, N, x);
 
   double params[3] = {S::kStart, S::kStart, S::kStart};
   double pc[3] = {S::kStart, S::kStart, S::kStart};
   double w[N], d[3 * N];
   bool converged = false;
+  double m = kDecisionMargin;  // the last step's margin
   for (int iteration = 0; !converged && iteration < 10; ++iteration) {
     S::functions(pc, w);
     S::derivs(pc, d);
@@ -303,16 +331,18 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
     if (std::fabs(det) < 1e-20) {
       const double bound = std::pow(longest2, 1.5);
       const double tol = 1e-20 < .00001 * bound ? 1e-20 : .00001 * bound;
+      // (det itself is off by a few ulp of L^3-sized products: far below the relative margin.)
       if (!(std::fabs(std::fabs(det) - tol) > kDecisionMargin * tol)) return PointInCell::kAskVtk;
       if (std::fabs(det) < tol) return PointInCell::kOutside;
     }
     pc[0] = params[0] - det3(fcol, scol, tcol) / det;
     pc[1] = params[1] - det3(rcol, fcol, tcol) / det;
     pc[2] = params[2] - det3(rcol, scol, fcol) / det;
+    m = roundoff(mag, longest2, det);
     bool below[3];
-    if (!stepIsClear(pc[0] - params[0], S::kConverged, below[0]) ||
-        !stepIsClear(pc[1] - params[1], S::kConverged, below[1]) ||
-        !stepIsClear(pc[2] - params[2], S::kConverged, below[2]))
+    if (!stepIsClear(pc[0] - params[0], S::kConverged, m, below[0]) ||
+        !stepIsClear(pc[1] - params[1], S::kConverged, m, below[1]) ||
+        !stepIsClear(pc[2] - params[2], S::kConverged, m, below[2]))
       return PointInCell::kAskVtk;
     if (below[0] && below[1] && below[2]) {
       converged = true;
@@ -321,7 +351,7 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
       bool diverged = false;
       for (int i = 0; i < 3; ++i) {
         bool out = false;
-        if (!stepIsClear(pc[i], 1e6, out)) return PointInCell::kAskVtk;
+        if (!stepIsClear(pc[i], 1e6, m, out)) return PointInCell::kAskVtk;
         diverged = diverged || !out;
       }
       if (diverged) return PointInCell::kOutside;
@@ -333,7 +363,7 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
   // Not converged in 10 steps: VTK says -1, but a step at the margin could have converged in
   // VTK's rounding; these are rare (tangled or very warped cells): VTK decides.
   if (!converged) return PointInCell::kAskVtk;
-  const PointInCell v = S::accept(pc);
+  const PointInCell v = S::accept(pc, m);
   if (v == PointInCell::kInside) {
     pcoords[0] = pc[0];
     pcoords[1] = pc[1];
@@ -365,6 +395,7 @@ inline PointInCell evaluateTetra(const double* pts, const double x[3], double pc
   }
   const double r = cell_eval::kConditionRatio;
   if (!(det * det > r * r * longest2 * longest2 * longest2) || !std::isfinite(det)) return PointInCell::kAskVtk;
+  const double m = cell_eval::roundoff(cell_eval::magnitude(pts, 4, x), longest2, det);
   double pc[3];
   pc[0] = cell_eval::det3(rhs, c2, c3) / det;
   pc[1] = cell_eval::det3(c1, rhs, c3) / det;
@@ -372,8 +403,8 @@ inline PointInCell evaluateTetra(const double* pts, const double x[3], double pc
   const double p4 = 1.0 - pc[0] - pc[1] - pc[2];
   using cell_eval::classify;
   using cell_eval::conjoin;
-  const PointInCell v = conjoin(conjoin(classify(pc[0], -0.001, 1.001), classify(pc[1], -0.001, 1.001)),
-                                conjoin(classify(pc[2], -0.001, 1.001), classify(p4, -0.001, 1.001)));
+  const PointInCell v = conjoin(conjoin(classify(pc[0], -0.001, 1.001, m), classify(pc[1], -0.001, 1.001, m)),
+                                conjoin(classify(pc[2], -0.001, 1.001, m), classify(p4, -0.001, 1.001, 3 * m)));
   if (v == PointInCell::kInside) {
     pcoords[0] = pc[0];
     pcoords[1] = pc[1];
@@ -394,7 +425,14 @@ inline PointInCell evaluateVoxel(const double* pts, const double x[3], double pc
   pc[2] = (x[2] - pts[2]) / (pts[14] - pts[2]);
   using cell_eval::classify;
   using cell_eval::conjoin;
-  const PointInCell v = conjoin(conjoin(classify(pc[0], 0.0, 1.0), classify(pc[1], 0.0, 1.0)), classify(pc[2], 0.0, 1.0));
+  // Round-off: a few ulp of the magnitude over the voxel's narrowest width (a zero or NaN width
+  // gives an infinite or NaN margin: VTK decides).
+  const double width = std::min({std::fabs(pts[3] - pts[0]), std::fabs(pts[7] - pts[1]), std::fabs(pts[14] - pts[2])});
+  const double m = cell_eval::kDecisionMargin +
+                   8 * std::numeric_limits<double>::epsilon() * cell_eval::magnitude(pts, 8, x) / width;
+  if (!(m < 1e-3)) return PointInCell::kAskVtk;
+  const PointInCell v =
+      conjoin(conjoin(classify(pc[0], 0.0, 1.0, m), classify(pc[1], 0.0, 1.0, m)), classify(pc[2], 0.0, 1.0, m));
   if (v == PointInCell::kInside) {
     pcoords[0] = pc[0];
     pcoords[1] = pc[1];
@@ -438,7 +476,11 @@ inline PointInCell evaluatePyramid(const double* pts, const double x[3], double 
   bool atApex = d2 == 0.;
   if (!atApex && length2 != 0.) {
     const double ratio = d2 / length2;
-    if (!(std::fabs(ratio - 1e-6) > cell_eval::kDecisionMargin * 1e-6)) return PointInCell::kAskVtk;  // or NaN
+    // Round-off of d2 near the threshold (|x - apex| ~ 1e-3 L): a few ulp of the magnitude over
+    // that distance, relative.
+    const double rel = cell_eval::kDecisionMargin + 64 * std::numeric_limits<double>::epsilon() *
+                                                        cell_eval::magnitude(pts, 5, x) / (1e-3 * std::sqrt(length2));
+    if (!(std::fabs(ratio - 1e-6) > rel * 1e-6)) return PointInCell::kAskVtk;  // or NaN
     atApex = ratio < 1e-6;
   }
   if (atApex) {
