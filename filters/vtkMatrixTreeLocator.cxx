@@ -192,6 +192,42 @@ inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, doub
   }
 }
 
+// Does cell `id` contain x, as VTK's EvaluatePosition decides? If so the cell is filled into
+// `cell` and pcoords and weights are VTK's. engineEval: the linear volume cells are evaluated by
+// the engine (mtree/cell_eval.h: VTK's arithmetic, VTK asked where a different rounding could
+// change the answer), and only a containing cell is filled; otherwise every cell is filled and
+// handed to VTK (tetrahedra after a cheap pre-test that only rejects what VTK would).
+MT_ALWAYS_INLINE bool CellContains(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3], vtkIdType id,
+  vtkGenericCell* cell, double pcoords[3], double* weights, bool engineEval)
+{
+  const uint8_t type = in.Cells.type(static_cast<size_t>(id));
+  double closest[3], dist2;
+  int subId = 0;
+  if (engineEval)
+  {
+    const int64_t np = in.Cells.numCellPoints(static_cast<size_t>(id));
+    if (mtree::cellEvaluable(type, np))
+    {
+      double pts[3 * mtree::CellSet::kMaxLocalPoints];
+      GatherPoints(in.Cells, static_cast<size_t>(id), np, pts);
+      const mtree::PointInCell v = mtree::evaluateLinearCell(type, pts, x, pcoords, weights);
+      if (v == mtree::PointInCell::kOutside)
+      {
+        return false;
+      }
+      FillCell(ds, in, id, cell, pts);
+      return v == mtree::PointInCell::kInside ||
+        cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
+    }
+  }
+  else if (type == mtree::kTetra && !in.Cells.tetraMayContain(static_cast<size_t>(id), mtree::Vec3(x), 0.01))
+  {
+    return false; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
+  }
+  FillCell(ds, in, id, cell);
+  return cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
+}
+
 // The leaf's quantized boxes (6 bytes per reference: xlo xhi ylo yhi zlo zhi) against a
 // quantized range [qmin, qmax] per axis: a box passes when lo <= qmax and hi >= qmin on every
 // axis. FindCell asks with qmax = floor(q), qmin = ceil(q) (the box holds q); the ray queries
@@ -312,8 +348,6 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     qc[a] = static_cast<uint8_t>(static_cast<int>(q[a]) + (static_cast<int>(q[a]) < q[a] ? 1 : 0));
   }
   const ByteBoxTest boxTest(qf, qc, r.end - k);
-  double closest[3], dist2;
-  int subId = 0;
   // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
   // ids, so the first that contains the point is still the answer), then their point ids and
   // points are prefetched ahead of the tests: each test's reads are random, and without the hint
@@ -329,9 +363,9 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
       cand[j] = ids[cand[j]];
     }
     k = stop;
-    // Only ahead of tetrahedra (judged by the first candidate): their cheap pre-test would wait
-    // on the reads; a larger cell goes to VTK's EvaluatePosition (Newton steps), which hides
-    // them, and there the hints measured slower.
+    // With the engine's evaluation every candidate's test would wait on its reads; with VTK's
+    // only tetrahedra (judged by the first candidate) benefit: the cheap pre-test waits, while a
+    // larger cell's Newton steps in VTK hide the loads, and there the hints measured slower.
     const bool ahead = nc > 1 && (engineEval || in.Cells.type(cand[0]) == mtree::kTetra);
     for (int j = 0; ahead && j < std::min(nc, 4); ++j)
     {
@@ -347,39 +381,9 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
       {
         in.Cells.prefetchPoints(cand[j + 2]);
       }
-      const vtkIdType id = cand[j];
-      const uint8_t type = in.Cells.type(id);
-      if (engineEval)
+      if (CellContains(ds, in, x, cand[j], cell, pcoords, weights, engineEval))
       {
-        const int64_t np = in.Cells.numCellPoints(id);
-        if (mtree::cellEvaluable(type, np))
-        {
-          // VTK's EvaluatePosition computed here (mtree/cell_eval.h): the same pcoords and
-          // weights, and VTK asked only where a different rounding could change the answer.
-          double pts[3 * mtree::CellSet::kMaxLocalPoints];
-          GatherPoints(in.Cells, id, np, pts);
-          const mtree::PointInCell v = mtree::evaluateLinearCell(type, pts, x, pcoords, weights);
-          if (v == mtree::PointInCell::kOutside)
-          {
-            continue;
-          }
-          FillCell(ds, in, id, cell, pts);
-          if (v == mtree::PointInCell::kInside ||
-            cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
-          {
-            return id;
-          }
-          continue;
-        }
-      }
-      else if (type == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
-      {
-        continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
-      }
-      FillCell(ds, in, id, cell);
-      if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
-      {
-        return id;
+        return cand[j];
       }
     }
   }
@@ -1677,8 +1681,7 @@ void vtkMatrixTreeLocator::FindCells(
   {
     vtkNew<vtkGenericCell> cell;
     std::vector<double> wk(static_cast<size_t>(nw));
-    double x[3], p[3], closest[3], dist2;
-    int subId = 0;
+    double x[3], p[3];
 #pragma omp for schedule(dynamic, 1024)
     for (vtkIdType i = 0; i < n; ++i)
     {
@@ -1700,9 +1703,9 @@ void vtkMatrixTreeLocator::FindCells(
           ids[i] = prims[k];
           if (wantParams)
           {
-            // pcoords and weights from VTK, which also confirms the device's answer.
-            this->DataSet->GetCell(ids[i], cell);
-            if (cell->EvaluatePosition(x, closest, subId, p, dist2, wk.data()) != 1)
+            // pcoords and weights as VTK's EvaluatePosition gives them, which also confirms the
+            // device's answer.
+            if (!CellContains(this->DataSet, in, x, ids[i], cell, p, wk.data(), this->EngineCellEvaluation))
             {
               ++unconfirmed;
               resume = true;
