@@ -24,7 +24,7 @@
 // computation repeats VTK's, so the answer is VTK's whenever both round the same way, as they do
 // in this build. An answer is given only where a different rounding could not change it: every
 // acceptance coordinate, and every Newton step against the convergence threshold, clear of its
-// limit by kDecisionMargin (1e-9) plus a bound on the round-off (roundoff(): 64 ulp of the
+// limit by kDecisionMargin (1e-9) plus a bound on the round-off (roundoff: 64 ulp of the
 // coordinates' magnitude through the inverse Jacobian, so cells far from the origin relative to
 // their size, 1e12 offsets, get a wide margin), coordinates away from the divergence bound, the
 // pyramid's apex ratio away from 1e-6, and a well-conditioned cell (|det| > 1e-9 of the cell's
@@ -72,7 +72,7 @@ inline double dist2(const double* a, const double* b) {
 }
 
 /// v in [lo, hi] surely (kInside), surely not (kOutside), or within the margin of a limit.
-/// m: the margin (kDecisionMargin plus the round-off bound of the computation, roundoff()).
+/// m: the margin (kDecisionMargin plus the round-off bound of the computation, roundoff).
 inline PointInCell classify(double v, double lo, double hi, double m) {
   if (v >= lo + m && v <= hi - m) return PointInCell::kInside;
   if (v < lo - m || v > hi + m) return PointInCell::kOutside;
@@ -88,31 +88,49 @@ inline PointInCell conjoin(PointInCell a, PointInCell b) {
 }
 
 /// Is |step| < threshold decided by more than the margin? Sets `below`; false: too close to call.
-/// m: the round-off bound of the step (roundoff()); the threshold's own margin is relative.
-inline bool stepIsClear(double step, double threshold, double m, bool& below) {
+/// The threshold's own margin is relative (kDecisionMargin); the round-off bound is
+/// roundoff's second term, kml2 / adet, compared multiplied out (no division per step): kml2 =
+/// 64 eps mag L^2, adet = |det|.
+inline bool stepIsClear(double step, double threshold, double kml2, double adet, bool& below) {
   const double a = std::fabs(step);
   below = a < threshold;
-  return std::fabs(a - threshold) > kDecisionMargin * threshold + m;  // false for NaN
+  return (std::fabs(a - threshold) - kDecisionMargin * threshold) * adet > kml2;  // false for NaN
 }
 
 /// The largest coordinate magnitude of x and the cell's n points: the scale of the round-off in
 /// x - p and in the Newton residual.
 inline double magnitude(const double* pts, int n, const double x[3]) {
+#if defined(__SSE2__)
+  // Two lanes and two registers, so the maxima form a short tree instead of one 3n-long chain
+  // of dependent max instructions (that chain cost a tetrahedron test a third of its time).
+  const __m128d sign = _mm_set1_pd(-0.0);
+  __m128d a = _mm_andnot_pd(sign, _mm_loadu_pd(x)), b = _mm_andnot_pd(sign, _mm_load_sd(x + 2));
+  const int m = 3 * n;
+  int i = 0;
+  for (; i + 4 <= m; i += 4) {
+    a = _mm_max_pd(a, _mm_andnot_pd(sign, _mm_loadu_pd(pts + i)));
+    b = _mm_max_pd(b, _mm_andnot_pd(sign, _mm_loadu_pd(pts + i + 2)));
+  }
+  for (; i + 2 <= m; i += 2) a = _mm_max_pd(a, _mm_andnot_pd(sign, _mm_loadu_pd(pts + i)));
+  if (i < m) b = _mm_max_pd(b, _mm_andnot_pd(sign, _mm_load_sd(pts + i)));
+  a = _mm_max_pd(a, b);
+  return std::max(_mm_cvtsd_f64(a), _mm_cvtsd_f64(_mm_unpackhi_pd(a, a)));
+#else
   double m = std::max({std::fabs(x[0]), std::fabs(x[1]), std::fabs(x[2])});
   for (int i = 0; i < 3 * n; ++i) m = std::max(m, std::fabs(pts[i]));
   return m;
+#endif
 }
 
-/// How far a parametric coordinate computed here can lie from VTK's if the two round
-/// differently (another compiler, FMA contraction, a VTK built with other flags): the residual
-/// x - X(p) is off by a few ulp of the coordinates' magnitude `mag`, and the solve turns that
-/// into pcoords through the inverse Jacobian, whose size is bounded by L^2 / |det| (L^2 the
-/// cell's squared size; the adjugate's entries are products of two edge vectors). 64 ulp of
-/// headroom. Where both round the same way (this build: no FMA, VTK's operation order) the
-/// answers are equal bit for bit and the margin only costs a VTK call near the limits.
-inline double roundoff(double mag, double size2, double det) {
-  return kDecisionMargin + 64 * std::numeric_limits<double>::epsilon() * mag * size2 / std::fabs(det);
-}
+// roundoff: how far a parametric coordinate computed here can lie from VTK's if the two round
+// differently (another compiler, FMA contraction, a VTK built with other flags): the residual
+// x - X(p) is off by a few ulp of the coordinates' magnitude `mag`, and the solve turns that
+// into pcoords through the inverse Jacobian, whose size is bounded by L^2 / |det| (L^2 the
+// cell's squared size; the adjugate's entries are products of two edge vectors). 64 ulp of
+// headroom. Where both round the same way (this build: no FMA, VTK's operation order) the
+// answers are equal bit for bit and the margin only costs a VTK call near the limits.
+// roundoff = kDecisionMargin + 64 eps mag L^2 / |det|; newton() and evaluateTetra() apply it
+// multiplied out, so that it costs no division per step.
 
 // Interpolation functions and their derivatives (r, s, t blocks of N), as VTK writes them.
 struct Hexahedron {
@@ -310,13 +328,13 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
   // |det| <= kConditionRatio * L^3, squared: no pow, no sqrt. A NaN or inf size is never clear.
   const double minDet2 = kConditionRatio * kConditionRatio * longest2 * longest2 * longest2;
   if (!(minDet2 < HUGE_VAL)) return PointInCell::kAskVtk;
-  const double mag = magnitude(pts, N, x);
+  const double kml2 = 64 * std::numeric_limits<double>::epsilon() * magnitude(pts, N, x) * longest2;
 
   double params[3] = {S::kStart, S::kStart, S::kStart};
   double pc[3] = {S::kStart, S::kStart, S::kStart};
   double w[N], d[3 * N];
   bool converged = false;
-  double m = kDecisionMargin;  // the last step's margin
+  double adet = 0;  // |det| of the last step
   for (int iteration = 0; !converged && iteration < 10; ++iteration) {
     S::functions(pc, w);
     S::derivs(pc, d);
@@ -338,11 +356,11 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
     pc[0] = params[0] - det3(fcol, scol, tcol) / det;
     pc[1] = params[1] - det3(rcol, fcol, tcol) / det;
     pc[2] = params[2] - det3(rcol, scol, fcol) / det;
-    m = roundoff(mag, longest2, det);
+    adet = std::fabs(det);
     bool below[3];
-    if (!stepIsClear(pc[0] - params[0], S::kConverged, m, below[0]) ||
-        !stepIsClear(pc[1] - params[1], S::kConverged, m, below[1]) ||
-        !stepIsClear(pc[2] - params[2], S::kConverged, m, below[2]))
+    if (!stepIsClear(pc[0] - params[0], S::kConverged, kml2, adet, below[0]) ||
+        !stepIsClear(pc[1] - params[1], S::kConverged, kml2, adet, below[1]) ||
+        !stepIsClear(pc[2] - params[2], S::kConverged, kml2, adet, below[2]))
       return PointInCell::kAskVtk;
     if (below[0] && below[1] && below[2]) {
       converged = true;
@@ -351,7 +369,7 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
       bool diverged = false;
       for (int i = 0; i < 3; ++i) {
         bool out = false;
-        if (!stepIsClear(pc[i], 1e6, m, out)) return PointInCell::kAskVtk;
+        if (!stepIsClear(pc[i], 1e6, kml2, adet, out)) return PointInCell::kAskVtk;
         diverged = diverged || !out;
       }
       if (diverged) return PointInCell::kOutside;
@@ -363,7 +381,8 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
   // Not converged in 10 steps: VTK says -1, but a step at the margin could have converged in
   // VTK's rounding; these are rare (tangled or very warped cells): VTK decides.
   if (!converged) return PointInCell::kAskVtk;
-  const PointInCell v = S::accept(pc, m);
+  // The acceptance margin, roundoff of the last step: one division per evaluation.
+  const PointInCell v = S::accept(pc, kDecisionMargin + kml2 / adet);
   if (v == PointInCell::kInside) {
     pcoords[0] = pc[0];
     pcoords[1] = pc[1];
@@ -395,16 +414,46 @@ inline PointInCell evaluateTetra(const double* pts, const double x[3], double pc
   }
   const double r = cell_eval::kConditionRatio;
   if (!(det * det > r * r * longest2 * longest2 * longest2) || !std::isfinite(det)) return PointInCell::kAskVtk;
-  const double m = cell_eval::roundoff(cell_eval::magnitude(pts, 4, x), longest2, det);
   double pc[3];
   pc[0] = cell_eval::det3(rhs, c2, c3) / det;
   pc[1] = cell_eval::det3(c1, rhs, c3) / det;
   pc[2] = cell_eval::det3(c1, c2, rhs) / det;
   const double p4 = 1.0 - pc[0] - pc[1] - pc[2];
-  using cell_eval::classify;
-  using cell_eval::conjoin;
-  const PointInCell v = conjoin(conjoin(classify(pc[0], -0.001, 1.001, m), classify(pc[1], -0.001, 1.001, m)),
-                                conjoin(classify(pc[2], -0.001, 1.001, m), classify(p4, -0.001, 1.001, 3 * m)));
+  // The margin, as roundoff but local: VTK works on x - p0 and p_i - p0 (plain subtractions,
+  // rounded the same way by any IEEE compiler), so the round-off that another compiler could
+  // add is in the determinants of those differences: a few ulp of max(L, |x - p0|) L^2, over
+  // |det| (3 times that for p4, a sum of three). This test runs for every candidate of a
+  // tetrahedral grid, so the margin is never formed (no division, no square root): a decision
+  // with clearance d stands when 64 eps max(L, |x - p0|) L^2 <= (d - 1e-9) |det|, squared.
+  // Most candidates are decided at clearance 1e-6 by the plain comparisons VTK makes; only
+  // points within 1e-6 of a limit take the exact clearance.
+  const double rhs2 = rhs[0] * rhs[0] + rhs[1] * rhs[1] + rhs[2] * rhs[2];
+  const double k = 64 * std::numeric_limits<double>::epsilon() * longest2;
+  const double need2 = k * k * std::max(longest2, rhs2);
+  const double adet = std::fabs(det);
+  auto clearBy = [&](double d) {
+    const double e = (d - cell_eval::kDecisionMargin) * adet;
+    return e > 0 && need2 <= e * e;
+  };
+  const double lo = -0.001, hi = 1.001, c = 1e-6, c4 = 3e-6;
+  PointInCell v = PointInCell::kAskVtk;
+  if (pc[0] >= lo + c && pc[0] <= hi - c && pc[1] >= lo + c && pc[1] <= hi - c && pc[2] >= lo + c &&
+      pc[2] <= hi - c && p4 >= lo + c4 && p4 <= hi - c4) {
+    v = clearBy(c) ? PointInCell::kInside : PointInCell::kAskVtk;
+  } else if (pc[0] < lo - c || pc[0] > hi + c || pc[1] < lo - c || pc[1] > hi + c || pc[2] < lo - c ||
+             pc[2] > hi + c || p4 < lo - c4 || p4 > hi + c4) {
+    v = clearBy(c) ? PointInCell::kOutside : PointInCell::kAskVtk;
+  }
+  if (v == PointInCell::kAskVtk && !std::isnan(p4)) {
+    // Within 1e-6 of a limit (or a cell whose margin exceeds 1e-6): the exact clearance.
+    const double third = 1.0 / 3;
+    const double dIn = std::min({pc[0] - lo, hi - pc[0], pc[1] - lo, hi - pc[1], pc[2] - lo, hi - pc[2],
+                                 (p4 - lo) * third, (hi - p4) * third});
+    const double dOut = std::max({lo - pc[0], pc[0] - hi, lo - pc[1], pc[1] - hi, lo - pc[2], pc[2] - hi,
+                                  (lo - p4) * third, (p4 - hi) * third});
+    v = dIn > 0 && clearBy(dIn) ? PointInCell::kInside
+                                : (dOut > 0 && clearBy(dOut) ? PointInCell::kOutside : PointInCell::kAskVtk);
+  }
   if (v == PointInCell::kInside) {
     pcoords[0] = pc[0];
     pcoords[1] = pc[1];
