@@ -19,6 +19,7 @@
 #include "vtkPolyData.h"
 
 #include "mtree/builder.h"
+#include "mtree/cell_eval.h"
 #include "mtree/cells.h"
 #include "mtree/segment_filter.h"
 #include "mtree/opencl.h"
@@ -117,8 +118,10 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
 // vtkDataSet::GetCell (the copy holds the dataset's values exactly: doubles, or floats where every
 // coordinate is one), without touching VTK's own connectivity and point arrays — for a random
 // query those are a second set of cache misses on data the scan has just read. Linear types
-// only; the others (and a cell needing VTK's initialisation) go through GetCell.
-void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType id, vtkGenericCell* cell)
+// only; the others (and a cell needing VTK's initialisation) go through GetCell. `pts`, when
+// given, are the cell's coordinates already read from the copy (3 doubles per point).
+void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType id, vtkGenericCell* cell,
+  const double* pts = nullptr)
 {
   const uint8_t type = in.Cells.type(static_cast<size_t>(id));
   if (type < VTK_VERTEX || type > VTK_PYRAMID)
@@ -126,22 +129,103 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
     ds->GetCell(id, cell);
     return;
   }
+  // VTK_VERTEX ... VTK_PYRAMID need no initialisation and have no explicit faces (only
+  // polyhedra and the higher-order types do), so the generic cell's type is all there is to set.
   cell->SetCellType(type);
-  if (cell->RequiresInitialization() || cell->RequiresExplicitFaceRepresentation())
-  {
-    ds->GetCell(id, cell);
-    return;
-  }
   const vtkIdType n = static_cast<vtkIdType>(in.Cells.numCellPoints(static_cast<size_t>(id)));
   const uint32_t* pid = in.Cells.cellPointIds(static_cast<size_t>(id));
-  cell->PointIds->SetNumberOfIds(n);
-  cell->Points->SetNumberOfPoints(n);
+  if (cell->PointIds->GetNumberOfIds() != n)
+  {
+    cell->PointIds->SetNumberOfIds(n);
+  }
+  vtkIdType* ids = cell->PointIds->GetPointer(0);
   for (vtkIdType k = 0; k < n; ++k)
   {
-    cell->PointIds->SetId(k, static_cast<vtkIdType>(pid[k]));
-    const mtree::Vec3 p = in.Cells.cellPoint(static_cast<size_t>(id), k);
-    cell->Points->SetPoint(k, p.x, p.y, p.z);
+    ids[k] = static_cast<vtkIdType>(pid[k]);
   }
+  // The coordinates straight into the cell's double array (n virtual SetTuple calls otherwise);
+  // Modified() as SetNumberOfPoints does, so the points' MTime moves as before.
+  vtkDoubleArray* xyz = vtkDoubleArray::FastDownCast(cell->Points->GetData());
+  if (!xyz || xyz->GetNumberOfComponents() != 3 || xyz->GetNumberOfTuples() != n)
+  {
+    cell->Points->SetNumberOfPoints(n);
+    xyz = vtkDoubleArray::FastDownCast(cell->Points->GetData());
+  }
+  else
+  {
+    cell->Points->Modified();
+  }
+  if (!xyz)
+  {
+    for (vtkIdType k = 0; k < n; ++k)
+    {
+      const mtree::Vec3 p = in.Cells.cellPoint(static_cast<size_t>(id), k);
+      cell->Points->SetPoint(k, p.x, p.y, p.z);
+    }
+    return;
+  }
+  double* out = xyz->GetPointer(0);
+  if (pts)
+  {
+    std::copy(pts, pts + 3 * n, out);
+    return;
+  }
+  for (vtkIdType k = 0; k < n; ++k)
+  {
+    const mtree::Vec3 p = in.Cells.cellPoint(static_cast<size_t>(id), k);
+    out[3 * k] = p.x;
+    out[3 * k + 1] = p.y;
+    out[3 * k + 2] = p.z;
+  }
+}
+
+// Cell `id`'s points from the engine's copy into pts (3 doubles each); at most n points.
+inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, double* pts)
+{
+  const uint32_t* pid = cells.cellPointIds(id);
+  for (int64_t k = 0; k < n; ++k)
+  {
+    const mtree::Vec3 p = cells.point(pid[k]);
+    pts[3 * k] = p.x;
+    pts[3 * k + 1] = p.y;
+    pts[3 * k + 2] = p.z;
+  }
+}
+
+// Does cell `id` contain x, as VTK's EvaluatePosition decides? If so the cell is filled into
+// `cell` and pcoords and weights are VTK's. engineEval: the linear volume cells are evaluated by
+// the engine (mtree/cell_eval.h: VTK's arithmetic, VTK asked where a different rounding could
+// change the answer), and only a containing cell is filled; otherwise every cell is filled and
+// handed to VTK (tetrahedra after a cheap pre-test that only rejects what VTK would).
+MT_ALWAYS_INLINE bool CellContains(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3], vtkIdType id,
+  vtkGenericCell* cell, double pcoords[3], double* weights, bool engineEval)
+{
+  const uint8_t type = in.Cells.type(static_cast<size_t>(id));
+  double closest[3], dist2;
+  int subId = 0;
+  if (engineEval)
+  {
+    const int64_t np = in.Cells.numCellPoints(static_cast<size_t>(id));
+    if (mtree::cellEvaluable(type, np))
+    {
+      double pts[3 * mtree::CellSet::kMaxLocalPoints];
+      GatherPoints(in.Cells, static_cast<size_t>(id), np, pts);
+      const mtree::PointInCell v = mtree::evaluateLinearCell(type, pts, x, pcoords, weights);
+      if (v == mtree::PointInCell::kOutside)
+      {
+        return false;
+      }
+      FillCell(ds, in, id, cell, pts);
+      return v == mtree::PointInCell::kInside ||
+        cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
+    }
+  }
+  else if (type == mtree::kTetra && !in.Cells.tetraMayContain(static_cast<size_t>(id), mtree::Vec3(x), 0.01))
+  {
+    return false; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
+  }
+  FillCell(ds, in, id, cell);
+  return cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
 }
 
 // The leaf's quantized boxes (6 bytes per reference: xlo xhi ylo yhi zlo zhi) against a
@@ -236,11 +320,17 @@ constexpr double kTetraTolerance = 1e-3;
 // MatrixTree::leafFind gives for x: FindCell runs it from the leaf's first candidate, the OpenCL
 // backend from the candidate where the device stopped.
 vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3],
-  const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights)
+  const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights,
+  bool engineEval)
 {
   const MtLeafRange r = in.Tree.leafRange(n);
   const uint32_t* ids = in.Tree.primitiveIndices().data();
   const uint8_t* boxes = in.LeafBoxes.data();
+  // The leaf's boxes and its cell ids are two independent reads (usually cache misses): start
+  // both now, so that they overlap each other and the set-up below instead of coming one after
+  // the other (boxes, then the ids of the boxes that pass).
+  __builtin_prefetch(boxes + 6 * static_cast<size_t>(k));
+  __builtin_prefetch(ids + k);
   // The point in the leaf's quantized frame (the same arithmetic as the boxes': monotone, so
   // a point inside the padded bounds is never rejected). Clamped into the leaf: round-off of
   // the leaf search may put a point a hair outside it, where only clipped boxes reach.
@@ -258,8 +348,6 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     qc[a] = static_cast<uint8_t>(static_cast<int>(q[a]) + (static_cast<int>(q[a]) < q[a] ? 1 : 0));
   }
   const ByteBoxTest boxTest(qf, qc, r.end - k);
-  double closest[3], dist2;
-  int subId = 0;
   // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
   // ids, so the first that contains the point is still the answer), then their point ids and
   // points are prefetched ahead of the tests: each test's reads are random, and without the hint
@@ -275,10 +363,10 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
       cand[j] = ids[cand[j]];
     }
     k = stop;
-    // Only ahead of tetrahedra (judged by the first candidate): their cheap pre-test would wait
-    // on the reads; a larger cell goes to VTK's EvaluatePosition (Newton steps), which hides
-    // them, and there the hints measured slower.
-    const bool ahead = nc > 1 && in.Cells.type(cand[0]) == mtree::kTetra;
+    // With the engine's evaluation every candidate's test would wait on its reads; with VTK's
+    // only tetrahedra (judged by the first candidate) benefit: the cheap pre-test waits, while a
+    // larger cell's Newton steps in VTK hide the loads, and there the hints measured slower.
+    const bool ahead = nc > 1 && (engineEval || in.Cells.type(cand[0]) == mtree::kTetra);
     for (int j = 0; ahead && j < std::min(nc, 4); ++j)
     {
       in.Cells.prefetchPointIds(cand[j]);
@@ -293,15 +381,9 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
       {
         in.Cells.prefetchPoints(cand[j + 2]);
       }
-      const vtkIdType id = cand[j];
-      if (in.Cells.type(id) == mtree::kTetra && !in.Cells.tetraMayContain(id, mtree::Vec3(x), 0.01))
+      if (CellContains(ds, in, x, cand[j], cell, pcoords, weights, engineEval))
       {
-        continue; // VTK accepts barycentrics within 1e-3: outside 1e-2 it surely says no
-      }
-      FillCell(ds, in, id, cell);
-      if (cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1)
-      {
-        return id;
+        return cand[j];
       }
     }
   }
@@ -772,7 +854,8 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
   {
     return -1;
   }
-  return ScanCandidates(this->DataSet, in, x, n, in.Tree.leafRange(n).begin, cell, pcoords, weights);
+  return ScanCandidates(
+    this->DataSet, in, x, n, in.Tree.leafRange(n).begin, cell, pcoords, weights, this->EngineCellEvaluation);
 }
 
 #if VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 2, 0)
@@ -1598,8 +1681,7 @@ void vtkMatrixTreeLocator::FindCells(
   {
     vtkNew<vtkGenericCell> cell;
     std::vector<double> wk(static_cast<size_t>(nw));
-    double x[3], p[3], closest[3], dist2;
-    int subId = 0;
+    double x[3], p[3];
 #pragma omp for schedule(dynamic, 1024)
     for (vtkIdType i = 0; i < n; ++i)
     {
@@ -1621,9 +1703,9 @@ void vtkMatrixTreeLocator::FindCells(
           ids[i] = prims[k];
           if (wantParams)
           {
-            // pcoords and weights from VTK, which also confirms the device's answer.
-            this->DataSet->GetCell(ids[i], cell);
-            if (cell->EvaluatePosition(x, closest, subId, p, dist2, wk.data()) != 1)
+            // pcoords and weights as VTK's EvaluatePosition gives them, which also confirms the
+            // device's answer.
+            if (!CellContains(this->DataSet, in, x, ids[i], cell, p, wk.data(), this->EngineCellEvaluation))
             {
               ++unconfirmed;
               resume = true;
@@ -1634,7 +1716,9 @@ void vtkMatrixTreeLocator::FindCells(
         {
           ++resumes;
           const mtree::NodeRef leaf = in.Tree.leafFind(mtree::Vec3(x));
-          ids[i] = leaf.exists ? ScanCandidates(this->DataSet, in, x, leaf, k, cell, p, wk.data()) : -1;
+          ids[i] = leaf.exists
+            ? ScanCandidates(this->DataSet, in, x, leaf, k, cell, p, wk.data(), this->EngineCellEvaluation)
+            : -1;
         }
       }
       if (ids[i] < 0)
@@ -1843,6 +1927,7 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
   this->SetBackend(other->Backend);
   this->SetOpenCLDevice(other->OpenCLDevice);
+  this->SetEngineCellEvaluation(other->EngineCellEvaluation);
 }
 
 //------------------------------------------------------------------------------
@@ -1865,6 +1950,7 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LastNumberOfHostResumes: " << this->LastNumberOfHostResumes << "\n";
   os << indent << "LastNumberOfUnconfirmedCells: " << this->LastNumberOfUnconfirmedCells << "\n";
   os << indent << "LastFindCellsPhases: " << this->Internals->FindPhases << "\n";
+  os << indent << "EngineCellEvaluation: " << (this->EngineCellEvaluation ? "On" : "Off") << "\n";
   os << indent << "Built: " << (this->Internals->Valid ? "yes" : "no") << "\n";
   if (this->Internals->Valid)
   {

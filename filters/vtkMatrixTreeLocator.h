@@ -12,7 +12,9 @@
  *
  * Answers are VTK's: candidate cells are evaluated with the cell's own EvaluatePosition /
  * IntersectWithLine, with the usual tolerance semantics, so results match vtkCellLocator and
- * vtkStaticCellLocator on the same data.
+ * vtkStaticCellLocator on the same data (FindCell repeats VTK's EvaluatePosition arithmetic
+ * for the linear volume cells itself and asks VTK where it cannot be sure: see
+ * EngineCellEvaluation).
  *
  * Settings: TreeType (OCTREE default, KDTREE), Height (0 = chosen from the cells' sizes),
  * BlockSize (8), NumberOfThreads for the build (0 = all), BuildSort (COUNTING, or the paper's
@@ -30,7 +32,7 @@
  * tetrahedra the containment test when its answer is certain. Every other candidate (other
  * cell types, a tetrahedron within ~1e-12 of VTK's 1e-3 tolerance) is left to the host, which
  * goes on with the CPU loop from that candidate; pcoords and weights of found cells come from
- * VTK's EvaluatePosition on the host. The cell ids are therefore exactly the CPU backend's, and
+ * the host's evaluation (VTK's EvaluatePosition, or the engine's copy of it). The cell ids are therefore exactly the CPU backend's, and
  * pcoords and weights equal. The one-point FindCell overloads, and every other query, always
  * run on the CPU. OPENCL without an OpenCL device, with a selector that matches none, or in a
  * build without OpenCL makes FindCells report a VTK error naming the backend and leave empty
@@ -216,6 +218,25 @@ public:
   const char* GetLastFindCellsPhases();
   ///@}
 
+  ///@{
+  /**
+   * How FindCell (and FindCells on the CPU) evaluates its candidate cells. On (default): the
+   * linear volume cells (tetrahedron, voxel, hexahedron, wedge, pyramid) are evaluated by the
+   * engine (mtree/cell_eval.h), which repeats VTK 9.1's EvaluatePosition operation for
+   * operation, so the cell ids, pcoords and weights are VTK's, bit for bit; where a different
+   * rounding could change the answer (a point within 1e-9 of the cell's tolerance boundary, a
+   * Newton step at the convergence threshold, a degenerate cell, a NaN) the cell goes to VTK's
+   * EvaluatePosition, as do all other types. Only a cell that contains the point (or that VTK
+   * is asked about) is filled into the vtkGenericCell; after a miss its contents are
+   * unspecified, as before. Off: every candidate is filled and handed to VTK's
+   * EvaluatePosition (the reference the tests compare with). A query setting: it does not mark
+   * the locator modified, so changing it never rebuilds the tree.
+   */
+  void SetEngineCellEvaluation(bool on) { this->EngineCellEvaluation = on; }
+  vtkGetMacro(EngineCellEvaluation, bool);
+  vtkBooleanMacro(EngineCellEvaluation, bool);
+  ///@}
+
   // ---- vtkLocator ----
   /** Builds the tree if the data set or a setting changed since the last build. */
   void BuildLocator() override;
@@ -352,6 +373,7 @@ protected:
   vtkIdType NumberOfOpenCLUploads = 0;
   vtkIdType LastNumberOfHostResumes = 0;
   vtkIdType LastNumberOfUnconfirmedCells = 0;
+  bool EngineCellEvaluation = true;
   vtkMatrixTreeLocatorInternals* Internals;
 
 private:
