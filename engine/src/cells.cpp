@@ -2,6 +2,8 @@
 
 #include <omp.h>
 
+#include <cstring>
+
 #include "mtree/parallel.h"
 
 namespace mtree {
@@ -99,6 +101,20 @@ void CellSet::keepFloatPointsIfExact() {
 }
 
 namespace {
+// std::nextafter(f, -inf) for a finite f, without the libm call (one per bound of every cell
+// whose coordinates are not floats: most of the cached bounds' cost on double grids): the
+// float below a positive one has the bit pattern one lower, below a negative one one higher,
+// and below either zero is the negative smallest subnormal.
+inline float nextFloatDown(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  if (f == 0) u = 0x80000001u;
+  else if (f > 0) --u;
+  else ++u;
+  std::memcpy(&f, &u, sizeof f);
+  return f;
+}
+
 // The float nearest x on the side of `dir` (-1: not above x, +1: not below x).
 inline float roundOut(double x, int dir) {
   const double big = std::numeric_limits<float>::max();
@@ -106,8 +122,8 @@ inline float roundOut(double x, int dir) {
   if (x > big) return dir < 0 ? std::numeric_limits<float>::max() : inf;
   if (x < -big) return dir < 0 ? -inf : -std::numeric_limits<float>::max();
   float f = static_cast<float>(x);
-  if (dir < 0 && static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-  if (dir > 0 && static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  if (dir < 0 && static_cast<double>(f) > x) f = nextFloatDown(f);
+  if (dir > 0 && static_cast<double>(f) < x) f = -nextFloatDown(-f);
   return f;
 }
 }  // namespace

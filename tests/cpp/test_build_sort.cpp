@@ -196,6 +196,28 @@ TEST(LeafBoxes, FusedEqualGatheredOnASurface) {
   expectLeafBoxesAsGathered(cells, TreeKind::Octree, OverlapMode::BoundingBox, 3, "bunny");
 }
 
+TEST(LeafBoxes, FusedEqualGatheredWithCellsLargerThanTheScatterTables) {
+  // The counting scatter computes each axis's bytes once per cell and candidate row (tables of
+  // up to 32 leaves per axis) and falls back to one call per reference beyond that: the bunny
+  // plus three triangles across the whole box (64 leaves per axis at its height) takes
+  // both paths in one build, with the same bytes as the gather.
+  const mtree::TriangleMesh mesh = mtest::loadRealMesh("meshes/bunny.ply");
+  std::vector<double> pts = mesh.points();
+  std::vector<uint32_t> tris = mesh.triangles();
+  mtree::Box b;
+  for (size_t i = 0; i < pts.size(); i += 3) b.extend(mtree::Vec3(&pts[i]));
+  const uint32_t base = static_cast<uint32_t>(pts.size() / 3);
+  pts.insert(pts.end(), {b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.lo.z, b.hi.x, b.lo.y, b.hi.z,
+                         b.lo.x, b.hi.y, b.hi.z});
+  tris.insert(tris.end(), {base, base + 1, base + 2, base + 1, base + 2, base + 3, base, base + 3, base + 1});
+  const CellSet cells = asCells(mtree::TriangleMesh(std::move(pts), std::move(tris)));
+  MatrixTree t;
+  MatrixTreeBuilder<CellSet>::build(cells, opts(TreeKind::Octree, OverlapMode::Exact, BuildSort::Counting, 1), t,
+                                    nullptr);
+  ASSERT_GE(t.dim(t.height(), 0), 64) << "the large triangles must span more than a table's 32 leaves";
+  expectLeafBoxesAsGathered(cells, TreeKind::Octree, OverlapMode::Exact, 0, "bunny + large triangles");
+}
+
 TEST(LeafBoxes, QuantizerMatchesTheFloorCeilFormula) {
   // The formula of the old gather, for one axis set.
   auto reference = [](const mtree::Box& cell, const mtree::Box& lb, uint8_t q[6]) {

@@ -121,6 +121,18 @@ inline void prefetchPrimitive(const P& prims, size_t i) {
   if constexpr (HasPrefetch<P>::value) prims.prefetch(i);
 }
 
+/// Per-reference data that is three per-axis parts, each depending on the primitive and the
+/// leaf's interval on that axis only: fn.axis(uint8_t* out, prim, a, leafLo, leafHi) writes
+/// Bytes / 3 bytes, and the reference's data is the parts of axes 0, 1, 2 in a row. The counting
+/// build's scatter then computes each part once per cell and candidate row/column/slab (a few
+/// per axis) and copies three parts per reference, instead of calling fn per reference.
+template <class F, class P, class = void>
+struct HasAxisData : std::false_type {};
+template <class F, class P>
+struct HasAxisData<F, P,
+                   std::void_t<decltype(std::declval<F&>().axis(std::declval<uint8_t*>(), std::declval<const P&>(), 0,
+                                                                0.0, 0.0))>> : std::true_type {};
+
 struct PhaseClock {
   using clock = std::chrono::steady_clock;
   clock::time_point start = clock::now(), last = start;
@@ -182,14 +194,19 @@ int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, dou
   // Mean number of candidate leaves (bounding-box cells) of the sampled primitives at height h.
   auto meanCandidates = [&](int h) {
     const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
+    // Per axis once, not per sample (ldexp and the division were most of this loop).
+    double inv[3];
+    int hiCell[3];
+    for (int a = 0; a < 3; ++a) {
+      inv[a] = std::ldexp(1.0, ld[a]) / ext[a];
+      hiCell[a] = (1 << ld[a]) - 1;
+    }
     double sum = 0;
     for (const Box& b : sample) {
       double c = 1;
-      for (int a = 0; a < 3; ++a) {
-        const double inv = std::ldexp(1.0, ld[a]) / ext[a];
-        const int hiCell = (1 << ld[a]) - 1;
-        c *= cellIndex((b.hi[a] - root.lo[a]) * inv, 0, hiCell) - cellIndex((b.lo[a] - root.lo[a]) * inv, 0, hiCell) + 1;
-      }
+      for (int a = 0; a < 3; ++a)
+        c *= cellIndex((b.hi[a] - root.lo[a]) * inv[a], 0, hiCell[a]) -
+             cellIndex((b.lo[a] - root.lo[a]) * inv[a], 0, hiCell[a]) + 1;
       sum += c;
     }
     return sum / static_cast<double>(sample.size());
@@ -551,13 +568,19 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       refData->resize(static_cast<size_t>(numPairs) * Bytes);
       out = refData->data();
     }
+    using Local = std::decay_t<decltype(prims.local(0))>;
+    constexpr bool byAxis = Bytes > 0 && Bytes % 3 == 0 && detail::HasAxisData<std::decay_t<RefFn>, Local>::value;
+    constexpr size_t axisBytes = Bytes / 3;
+    // Per-axis parts of a cell's candidate range, kept for ranges up to this many leaves per axis.
+    constexpr int kAxisTable = 32;
 #pragma omp parallel num_threads(threads)
     {
       auto f = fn;  // one copy per thread
+      uint8_t table[3][kAxisTable][byAxis ? axisBytes : 1];
 #pragma omp for schedule(dynamic, 512)
       for (int64_t i = 0; i < n; ++i) {
         const auto prim = prims.local(i);
-        forEachLeaf(i, prim, [&](int x, int y, int z) {
+        auto takeSlot = [&](int x, int y, int z) {
           uint32_t& c = cursor[leaves.storageIndex(x, y, z)];
           uint32_t slot;
           if (shared) {
@@ -567,6 +590,27 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
             slot = c++;
           }
           values[slot] = static_cast<uint32_t>(i);
+          return slot;
+        };
+        if constexpr (byAxis) {
+          int lo[3], hi[3];
+          cellRange(prim.bounds(), lo, hi);
+          if (hi[0] - lo[0] < kAxisTable && hi[1] - lo[1] < kAxisTable && hi[2] - lo[2] < kAxisTable) {
+            // The leaf's interval on axis a is leafBox's: org + c * size to org + (c + 1) * size.
+            for (int a = 0; a < 3; ++a)
+              for (int c = lo[a]; c <= hi[a]; ++c)
+                f.axis(table[a][c - lo[a]], prim, a, org[a] + c * leafSize[a], org[a] + (c + 1) * leafSize[a]);
+            forEachLeaf(i, prim, [&](int x, int y, int z) {
+              uint8_t* o = out + size_t(takeSlot(x, y, z)) * Bytes;
+              std::memcpy(o, table[0][x - lo[0]], axisBytes);
+              std::memcpy(o + axisBytes, table[1][y - lo[1]], axisBytes);
+              std::memcpy(o + 2 * axisBytes, table[2][z - lo[2]], axisBytes);
+            });
+            continue;
+          }
+        }
+        forEachLeaf(i, prim, [&](int x, int y, int z) {
+          const uint32_t slot = takeSlot(x, y, z);
           if constexpr (Bytes > 0) f(out + size_t(slot) * Bytes, prim, leafBox(x, y, z));
         });
       }
