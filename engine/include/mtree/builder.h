@@ -370,6 +370,20 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   masks.resize(exact ? static_cast<size_t>(n) : 0);
   marks.assign(tree.leaves_.pointerCount(), 0);
   const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
+  // One-thread counting builds also count the references per leaf here, where every overlapped
+  // leaf is in hand, instead of enumerating them all again after the allocation: a block gets
+  // a provisional number when first touched (blockOrder, per pointer-matrix entry) and its
+  // leaves' counts go to leafCounts in that numbering; after the allocation each block's counts
+  // are copied to its final place. The counts, hence the tree, are those of the separate pass.
+  const bool countHere = opt.sort == BuildSort::Counting && threads == 1;
+  const uint32_t blockVolume = tree.leaves_.blockVolume();
+  std::vector<uint32_t>& blockOrder = scratch.tmpKeys;
+  std::vector<uint32_t>& leafCounts = scratch.tmpValues;
+  uint32_t touched = 0;
+  if (countHere) {
+    blockOrder.assign(tree.leaves_.pointerCount(), MT_NULL);
+    leafCounts.clear();
+  }
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
   for (int64_t i = 0; i < n; ++i) {
     const auto prim = prims.local(i);
@@ -382,6 +396,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     uint32_t c = 0, cand = 0;
     uint64_t mask = 0;
     size_t lastBlock = ~size_t{0};
+    uint32_t* blockCounts = nullptr;  // countHere: the counts of block lastBlock
     auto visit = [&](auto&& overlaps) {
       for (int k = lo[2]; k <= hi[2]; ++k)
         for (int j = lo[1]; j <= hi[1]; ++j)
@@ -394,7 +409,15 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
 #pragma omp atomic write
               marks[blk] = 1;
               lastBlock = blk;
+              if (countHere) {
+                if (blockOrder[blk] == MT_NULL) {
+                  blockOrder[blk] = touched++;
+                  leafCounts.resize(size_t(touched) * blockVolume, 0);
+                }
+                blockCounts = leafCounts.data() + size_t(blockOrder[blk]) * blockVolume;
+              }
             }
+            if (countHere) ++blockCounts[leaves.localIndex(ii, j, k)];
           }
     };
     if (test) {
@@ -528,19 +551,29 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     const int64_t nl = static_cast<int64_t>(L);
     std::vector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
     std::vector<uint32_t>& cursor = scratch.offsets;  // next free slot per leaf
-    perLeaf.assign(L, 0);
     cursor.resize(L);
+    if (countHere) {
+      // Counted by count+mark in first-touch block order: every allocated block was touched.
+      perLeaf.resize(L);
+      const std::vector<uint32_t>& ptr = tree.leaves_.pointers();
+      for (size_t p = 0; p < ptr.size(); ++p)
+        if (blockOrder[p] != MT_NULL)
+          std::memcpy(perLeaf.data() + size_t(ptr[p]) * blockVolume, leafCounts.data() + size_t(blockOrder[p]) * blockVolume,
+                      blockVolume * sizeof(uint32_t));
+    } else {
+      perLeaf.assign(L, 0);
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
-    for (int64_t i = 0; i < n; ++i) {
-      forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
-        uint32_t& c = perLeaf[leaves.storageIndex(x, y, z)];
-        if (shared) {
+      for (int64_t i = 0; i < n; ++i) {
+        forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
+          uint32_t& c = perLeaf[leaves.storageIndex(x, y, z)];
+          if (shared) {
 #pragma omp atomic update
-          ++c;
-        } else {
-          ++c;
-        }
-      });
+            ++c;
+          } else {
+            ++c;
+          }
+        });
+      }
     }
     clock.lap("leaf counts");
 
