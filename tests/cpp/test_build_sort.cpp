@@ -218,6 +218,54 @@ TEST(LeafBoxes, FusedEqualGatheredWithCellsLargerThanTheScatterTables) {
   expectLeafBoxesAsGathered(cells, TreeKind::Octree, OverlapMode::Exact, 0, "bunny + large triangles");
 }
 
+/// A CellSet seen without CellSet::Local::vertices(): the builder then runs the separating-axis
+/// test on every candidate leaf (the path before the point shortcut of count+mark).
+struct EveryCandidateTested {
+  const CellSet* cells;
+  struct Local {
+    CellSet::Local cell;
+    mtree::Box bounds() const { return cell.bounds(); }
+    CellSet::Local::Tester tester(mtree::Vec3 half) const { return cell.tester(half); }
+  };
+  size_t size() const { return cells->size(); }
+  mtree::Box bounds(size_t i) const { return cells->bounds(i); }
+  Local local(size_t i) const { return Local{cells->local(i)}; }
+};
+
+/// count+mark takes a candidate leaf that contains a point of the cell as overlapped without the
+/// separating-axis test (and builds no tester when those are all the candidates): the tree must
+/// be the one the test on every candidate gives, leaf for leaf and reference for reference.
+void expectPointShortcutExact(const CellSet& cells, const std::string& what) {
+  for (TreeKind kind : {TreeKind::Octree, TreeKind::RegularKd})
+    for (int height : {0, 1}) {
+      BuildOptions o = opts(kind, OverlapMode::Exact, BuildSort::Counting, 1);
+      o.leafScale = 1.0;  // the locator's automatic height
+      o.maxCandidates = 16;
+      MatrixTree tested, shortcut;
+      mtree::BuildStats st;
+      MatrixTreeBuilder<EveryCandidateTested>::build(EveryCandidateTested{&cells}, o, tested, &st);
+      if (height) o.height = st.height + 1;  // smaller leaves: more candidates hold no point
+      if (height) MatrixTreeBuilder<EveryCandidateTested>::build(EveryCandidateTested{&cells}, o, tested, nullptr);
+      MatrixTreeBuilder<CellSet>::build(cells, o, shortcut, nullptr);
+      mtest::expectSameTree(tested, shortcut, what + ": " + name(o));
+    }
+}
+
+TEST(CountMark, PointShortcutGivesTheTestedTreeOnCfdGrids) {
+  for (const char* g : {"cfd/brick_hex.su2", "cfd/brick_prism.su2", "cfd/brick_pyra.su2", "cfd/brick_tets.su2",
+                        "cfd/pipe_flow_tets.vtu", "cfd/pipe_lumen_tets.vtu"}) {
+    CellSet cells = loadGrid(g);
+    expectPointShortcutExact(cells, g);
+    cells.setAxes(mtree::CellAxes::All);
+    expectPointShortcutExact(cells, std::string(g) + " (all axes)");
+  }
+}
+
+TEST(CountMark, PointShortcutGivesTheTestedTreeOnSurfaces) {
+  for (const char* m : {"meshes/bunny.ply", "meshes/lucy.ply"})
+    expectPointShortcutExact(asCells(mtest::loadRealMesh(m)), m);
+}
+
 TEST(LeafBoxes, QuantizerMatchesTheFloorCeilFormula) {
   // The formula of the old gather, for one axis set.
   auto reference = [](const mtree::Box& cell, const mtree::Box& lb, uint8_t q[6]) {

@@ -133,6 +133,17 @@ struct HasAxisData<F, P,
                    std::void_t<decltype(std::declval<F&>().axis(std::declval<uint8_t*>(), std::declval<const P&>(), 0,
                                                                 0.0, 0.0))>> : std::true_type {};
 
+/// Primitives that give their points (prim.vertices(Vec3* out) -> count, at most 8; 0 when
+/// unknown) and a tester from them (prim.tester(half, points, count)): count+mark then takes a
+/// candidate leaf that contains a point of the primitive as overlapped without a separating-
+/// axis test, and builds no tester when those leaves are all the candidates (see there).
+template <class L, class = void>
+struct HasVertices : std::false_type {};
+template <class L>
+struct HasVertices<L, std::void_t<decltype(std::declval<const L&>().vertices(std::declval<Vec3*>())),
+                                  decltype(std::declval<const L&>().tester(Vec3(), std::declval<const Vec3*>(), 0))>>
+    : std::true_type {};
+
 struct PhaseClock {
   using clock = std::chrono::steady_clock;
   clock::time_point start = clock::now(), last = start;
@@ -401,7 +412,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       for (int k = lo[2]; k <= hi[2]; ++k)
         for (int j = lo[1]; j <= hi[1]; ++j)
           for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
-            if (!overlaps(ii, j, k)) continue;
+            if (!overlaps(ii, j, k, cand)) continue;
             if (cand < 64) mask |= uint64_t{1} << cand;
             ++c;
             const size_t blk = leaves.pointerIndex(ii, j, k);
@@ -420,12 +431,46 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
             if (countHere) ++blockCounts[leaves.localIndex(ii, j, k)];
           }
     };
-    if (test) {
+    using Local = std::decay_t<decltype(prim)>;
+    if (!test) {
+      visit([](int, int, int, uint32_t) { return true; });
+    } else if constexpr (detail::HasVertices<Local>::value) {
+      // A candidate leaf that contains a point of the primitive overlaps it: the leaf's padded
+      // box holds the point (its index is computed as the candidate range's, and its round-off
+      // is far below the pad), so no separating axis exists and the test would say "overlap"
+      // too: the same verdicts, for a few multiplications per point instead of a dot product
+      // per axis. When those leaves are every candidate (a hexahedron about one leaf wide over
+      // its 2x2x2 leaves), no tester is built at all. Only tried where it can be the case (no
+      // more candidates than points): elsewhere (a tetrahedron over 8 candidates, a triangle)
+      // it saved fewer dot products than it cost.
+      const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
+      const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
+      Vec3 v[8];
+      const int nv = prim.vertices(v);
+      uint64_t known = 0;
+      if (numCand <= uint64_t(nv)) {
+        const int dims[3] = {nx, ny, nz};
+        for (int q = 0; q < nv; ++q) {
+          int c[3];
+          for (int a = 0; a < 3; ++a)
+            c[a] = std::min(std::max(cellIndexNonNegative((v[q][a] - org[a]) * invLeaf[a], 0, dims[a] - 1), lo[a]),
+                            hi[a]);
+          known |= uint64_t{1} << (((c[2] - lo[2]) * w1 + (c[1] - lo[1])) * w0 + (c[0] - lo[0]));
+        }
+      }
+      const uint64_t all = numCand >= 64 ? ~uint64_t{0} : (uint64_t{1} << numCand) - 1;
+      if (numCand <= uint64_t(nv) && known == all) {
+        visit([](int, int, int, uint32_t) { return true; });
+      } else {
+        const auto tester = prim.tester(half, v, nv);
+        visit([&](int x, int y, int z, uint32_t cd) {
+          return (cd < 64 && ((known >> cd) & 1)) || tester.overlaps(cellCentre(x, y, z));
+        });
+      }
+    } else {
       // The separating-axis tester is built only for primitives that need it.
       const auto tester = prim.tester(half);
-      visit([&](int x, int y, int z) { return tester.overlaps(cellCentre(x, y, z)); });
-    } else {
-      visit([](int, int, int) { return true; });
+      visit([&](int x, int y, int z, uint32_t) { return tester.overlaps(cellCentre(x, y, z)); });
     }
     counts[i] = c;
     if (exact) masks[i] = mask;

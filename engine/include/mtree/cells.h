@@ -197,11 +197,24 @@ class CellSet {
       }
     };
     Tester tester(Vec3 half) const {
-      Tester t;
       Vec3 p[kMaxLocalPoints];
-      int n = 0;
-      const CellTopology* topo = nullptr;
-      if (!fetch(p, n, topo)) return t;  // no axes: every candidate of the bounding-box range overlaps
+      return tester(half, p, vertices(p));
+    }
+    /// The cell's points (at most kMaxLocalPoints), for the types with a table; 0 for the others
+    /// (their bounding box decides) and for a malformed point count.
+    int vertices(Vec3* p) const {
+      const CellTopology* topo = cellTopology(set->type(cell));
+      const int64_t np = set->numCellPoints(cell);
+      if (!topo || np != topo->numPoints) return 0;
+      for (int k = 0; k < topo->numPoints; ++k) p[k] = set->cellPoint(cell, k);
+      return topo->numPoints;
+    }
+    /// The tester from the points vertices() gave (n of them; 0: no axes, every candidate of
+    /// the bounding-box range overlaps).
+    Tester tester(Vec3 half, const Vec3* p, int n) const {
+      Tester t;
+      if (n == 0) return t;
+      const CellTopology* topo = cellTopology(set->type(cell));
       auto add = [&](Vec3 a) {
         if ((a.x == 0 && a.y == 0 && a.z == 0) || t.n == Tester::kMaxAxes) return;
         double mn = std::numeric_limits<double>::infinity(), mx = -mn;
