@@ -17,6 +17,7 @@
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
+#include "vtkSmartPointer.h"
 
 #include "mtree/builder.h"
 #include "mtree/cells.h"
@@ -43,6 +44,9 @@
 
 struct vtkMatrixTreeLocatorInternals
 {
+  // The data set's point array when Cells reads the points from it instead of a copy (float or
+  // double arrays of 3 components): held so that it outlives a SetPoints() on the data set.
+  vtkSmartPointer<vtkDataArray> PointArray;
   mtree::CellSet Cells;
   mtree::MatrixTree Tree;
   mtree::BuildStats Stats;
@@ -594,19 +598,22 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   }
   const vtkIdType np = ds->GetNumberOfPoints();
   const vtkIdType nc = ds->GetNumberOfCells();
-  std::vector<double> pts(static_cast<size_t>(np) * 3);
+  // Float and double point arrays are read in place (as VTK's own locators read the data set),
+  // not copied: no copy to make per build and none to hold. Other arrays (and data sets without
+  // a point array) are copied as doubles.
   vtkPointSet* ps = vtkPointSet::SafeDownCast(ds);
   vtkDataArray* pdata = ps && ps->GetPoints() ? ps->GetPoints()->GetData() : nullptr;
-  if (auto* dbl = vtkDoubleArray::FastDownCast(pdata))
+  vtkFloatArray* viewFloats = nullptr;
+  vtkDoubleArray* viewDoubles = nullptr;
+  if (pdata && pdata->GetNumberOfComponents() == 3 && pdata->GetNumberOfTuples() == np)
   {
-    std::copy(dbl->GetPointer(0), dbl->GetPointer(0) + 3 * np, pts.begin());
+    viewFloats = vtkFloatArray::FastDownCast(pdata);
+    viewDoubles = vtkDoubleArray::FastDownCast(pdata);
   }
-  else if (auto* flt = vtkFloatArray::FastDownCast(pdata))
+  std::vector<double> pts;
+  if (!viewFloats && !viewDoubles)
   {
-    std::copy(flt->GetPointer(0), flt->GetPointer(0) + 3 * np, pts.begin());
-  }
-  else
-  {
+    pts.resize(static_cast<size_t>(np) * 3);
     for (vtkIdType i = 0; i < np; ++i)
     {
       ds->GetPoint(i, &pts[3 * i]);
@@ -705,8 +712,24 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   double convertMs2 = 0;
   try
   {
-    in.Cells = mtree::CellSet(
-      std::move(pts), std::move(offsets), std::move(conn), std::move(types), buildThreads);
+    in.PointArray = nullptr;
+    if (viewFloats)
+    {
+      in.Cells = mtree::CellSet(viewFloats->GetPointer(0), static_cast<size_t>(np), std::move(offsets),
+        std::move(conn), std::move(types), buildThreads);
+      in.PointArray = viewFloats;
+    }
+    else if (viewDoubles)
+    {
+      in.Cells = mtree::CellSet(viewDoubles->GetPointer(0), static_cast<size_t>(np), std::move(offsets),
+        std::move(conn), std::move(types), buildThreads);
+      in.PointArray = viewDoubles;
+    }
+    else
+    {
+      in.Cells = mtree::CellSet(
+        std::move(pts), std::move(offsets), std::move(conn), std::move(types), buildThreads);
+    }
     in.Cells.setAxes(this->FullSeparatingAxes ? mtree::CellAxes::All : mtree::CellAxes::Faces);
     convertMs2 = msSince(tStart) - convertMs;
     // The quantized leaf boxes are the builder's per-reference data: written at the scatter

@@ -64,10 +64,11 @@ std::vector<uint32_t> CellSet::narrow(const std::vector<int64_t>& v, const char*
 }
 
 void CellSet::validate() const {
-  for (size_t i = 0; i < pts_.size(); ++i)
-    if (!std::isfinite(pts_[i]))
+  const size_t nc = 3 * pts_.n;
+  for (size_t i = 0; i < nc; ++i)
+    if (!std::isfinite(floatPoints_ ? double(pts_.fp[i]) : pts_.dp[i]))
       throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
-  const uint64_t np = pts_.size() / 3;
+  const uint64_t np = pts_.n;
   for (size_t c = 0; c + 1 < off_.size(); ++c)
     if (off_[c + 1] < off_[c]) throw std::invalid_argument("CellSet: offsets must not decrease");
   for (size_t k = 0; k < conn_.size(); ++k)
@@ -93,10 +94,12 @@ void CellSet::dropUniformOffsets() {
 void CellSet::keepFloatPointsIfExact() {
   // Grids read from float arrays (most VTK files) arrive here widened to doubles: kept as
   // floats they take half the memory and give back the very same doubles.
-  for (double x : pts_)
+  if (pts_.view) return;  // nothing held to save
+  for (double x : pts_.d)
     if (static_cast<double>(static_cast<float>(x)) != x) return;
-  ptsF_.assign(pts_.begin(), pts_.end());
-  std::vector<double>().swap(pts_);
+  pts_.f.assign(pts_.d.begin(), pts_.d.end());
+  std::vector<double>().swap(pts_.d);
+  pts_.rebind();
   floatPoints_ = true;
 }
 

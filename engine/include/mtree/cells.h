@@ -73,15 +73,33 @@ class CellSet {
   /// bounds (0 = OpenMP's default).
   CellSet(std::vector<double> points, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
           std::vector<uint8_t> types, int threads = 0)
-      : pts_(std::move(points)), off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
-    if (pts_.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
-    if (pts_.size() / 3 >= 0xffffffffu) throw std::length_error("CellSet: more than 2^32 - 1 points");
-    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 || off_.back() != conn_.size())
-      throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
-    validate();
-    dropUniformOffsets();
-    keepFloatPointsIfExact();
-    computeBounds(threads);
+      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
+    if (points.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
+    pts_.d = std::move(points);
+    pts_.n = pts_.d.size() / 3;
+    pts_.rebind();
+    init(threads);
+  }
+  /// The same over the caller's points, not copied: 3 floats (or doubles) per point, which must
+  /// stay alive and unchanged while the set is used (the locator keeps a reference to the data
+  /// set's point array). bytes() does not count them. Float points are read as floats; double
+  /// points as doubles (not narrowed, as there is no copy to save).
+  CellSet(const float* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
+          std::vector<uint8_t> types, int threads = 0)
+      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
+    pts_.fp = points;
+    pts_.n = numPoints;
+    pts_.view = true;
+    floatPoints_ = true;
+    init(threads);
+  }
+  CellSet(const double* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
+          std::vector<uint8_t> types, int threads = 0)
+      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
+    pts_.dp = points;
+    pts_.n = numPoints;
+    pts_.view = true;
+    init(threads);
   }
   /// The same from 64-bit offsets and connectivity (converted; see above for the limits).
   CellSet(std::vector<double> points, const std::vector<int64_t>& offsets, const std::vector<int64_t>& connectivity,
@@ -96,11 +114,11 @@ class CellSet {
   }
   const uint32_t* cellPointIds(size_t c) const { return conn_.data() + firstPoint(c); }
   Vec3 cellPoint(size_t c, int64_t k) const { return point(conn_[firstPoint(c) + k]); }
-  size_t numPoints() const { return floatPoints_ ? ptsF_.size() / 3 : pts_.size() / 3; }
+  size_t numPoints() const { return pts_.n; }
   /// Point i, as given (points that are all exact floats are kept as floats, read back exactly).
   Vec3 point(size_t i) const {
-    if (floatPoints_) return Vec3(ptsF_[3 * i], ptsF_[3 * i + 1], ptsF_[3 * i + 2]);
-    return Vec3(&pts_[3 * i]);
+    if (floatPoints_) return Vec3(pts_.fp[3 * i], pts_.fp[3 * i + 1], pts_.fp[3 * i + 2]);
+    return Vec3(&pts_.dp[3 * i]);
   }
   /// Whether the points are kept as floats (every coordinate given was exactly a float).
   bool floatPoints() const { return floatPoints_; }
@@ -120,8 +138,8 @@ class CellSet {
     const uint32_t* id = cellPointIds(c);
     const int64_t n = std::min<int64_t>(numCellPoints(c), kMaxLocalPoints);
     for (int64_t k = 0; k < n; ++k) {
-      if (floatPoints_) __builtin_prefetch(&ptsF_[3 * size_t(id[k])]);
-      else __builtin_prefetch(&pts_[3 * size_t(id[k])]);
+      if (floatPoints_) __builtin_prefetch(&pts_.fp[3 * size_t(id[k])]);
+      else __builtin_prefetch(&pts_.dp[3 * size_t(id[k])]);
     }
   }
   /// Cached (conservative) bounds as a Box: what the tree build uses.
@@ -273,13 +291,15 @@ class CellSet {
     return u >= lo && u <= hi && v >= lo && v <= hi && w >= lo && w <= hi && s >= lo && s <= hi;
   }
 
-  /// Bytes held: points (12 bytes each when they are all exact floats, else 24), offsets (none
-  /// when every cell has the same number of points: the offsets are then c x that number),
-  /// connectivity, types and cached bounds.
+  /// Bytes held: points (12 bytes each when they are all exact floats, else 24; none when they
+  /// are the caller's), offsets (none when every cell has the same number of points: the
+  /// offsets are then c x that number), connectivity, types and cached bounds.
   size_t bytes() const {
-    return pts_.size() * sizeof(double) + ptsF_.size() * sizeof(float) + (off_.size() + conn_.size()) * sizeof(uint32_t) +
-           types_.size() + box_.size() * sizeof(float);
+    return pts_.d.size() * sizeof(double) + pts_.f.size() * sizeof(float) +
+           (off_.size() + conn_.size()) * sizeof(uint32_t) + types_.size() + box_.size() * sizeof(float);
   }
+  /// Whether the points are the caller's (the view constructors), not a copy.
+  bool pointsViewed() const { return pts_.view; }
 
  private:
   static std::vector<uint32_t> narrow(const std::vector<int64_t>& v, const char* what);
@@ -288,9 +308,49 @@ class CellSet {
   void keepFloatPointsIfExact();
   size_t firstPoint(size_t c) const { return uniform_ >= 0 ? size_t(uniform_) * c : size_t(off_[c]); }
   void computeBounds(int threads);
+  /// The constructors' common checks and set-up, once the points are in place.
+  void init(int threads) {
+    if (pts_.n >= 0xffffffffu) throw std::length_error("CellSet: more than 2^32 - 1 points");
+    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 || off_.back() != conn_.size())
+      throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
+    validate();
+    dropUniformOffsets();
+    keepFloatPointsIfExact();
+    computeBounds(threads);
+  }
 
-  std::vector<double> pts_;
-  std::vector<float> ptsF_;  // instead of pts_ when every coordinate is exactly a float
+  /// The points: owned doubles (d), owned floats (f, when every given double was exactly a
+  /// float), or the caller's (view); point() reads through dp or fp, which follow the owned
+  /// arrays through copies and moves.
+  struct Points {
+    std::vector<double> d;
+    std::vector<float> f;
+    const double* dp = nullptr;
+    const float* fp = nullptr;
+    size_t n = 0;
+    bool view = false;
+    Points() = default;
+    Points(const Points& o) : d(o.d), f(o.f), dp(o.dp), fp(o.fp), n(o.n), view(o.view) { rebind(); }
+    Points& operator=(const Points& o) {
+      d = o.d;
+      f = o.f;
+      dp = o.dp;
+      fp = o.fp;
+      n = o.n;
+      view = o.view;
+      rebind();
+      return *this;
+    }
+    // A moved vector keeps its buffer, so the pointers stay right.
+    Points(Points&&) noexcept = default;
+    Points& operator=(Points&&) noexcept = default;
+    void rebind() {
+      if (view) return;
+      dp = d.empty() ? nullptr : d.data();
+      fp = f.empty() ? nullptr : f.data();
+    }
+  };
+  Points pts_;
   bool floatPoints_ = false;
   std::vector<uint32_t> off_, conn_;
   int64_t uniform_ = -1;  // >= 0: every cell has this many points and off_ is released
