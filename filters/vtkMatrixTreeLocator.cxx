@@ -633,13 +633,25 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   std::vector<uint32_t> offsets(static_cast<size_t>(nc) + 1, 0), conn;
   std::vector<uint8_t> types(static_cast<size_t>(nc));
   vtkUnstructuredGrid* ug = vtkUnstructuredGrid::SafeDownCast(ds);
-  vtkCellArray* ca = ug ? ug->GetCells() : nullptr;
-  if (ca && ug->GetCellTypesArray() && ca->GetNumberOfCells() == nc)
+  vtkCellArray* ca = ug && ug->GetCellTypesArray() ? ug->GetCells() : nullptr;
+  // Polydata with polygons only (the surface meshes): cell c is polygon c, so its cell array is
+  // copied the same way; the types follow from the sizes below.
+  vtkPolyData* pd = ug ? nullptr : vtkPolyData::SafeDownCast(ds);
+  const bool polysOnly = pd && pd->GetPolys() && pd->GetNumberOfVerts() == 0 && pd->GetNumberOfLines() == 0 &&
+    pd->GetNumberOfStrips() == 0;
+  if (!ca && polysOnly)
   {
-    // Unstructured grids: copy the cell arrays directly (the generic per-cell loop below costs
-    // more than the whole tree build).
-    const unsigned char* t = ug->GetCellTypesArray()->GetPointer(0);
-    std::copy(t, t + nc, types.begin());
+    ca = pd->GetPolys();
+  }
+  if (ca && ca->GetNumberOfCells() == nc)
+  {
+    // Unstructured grids and polygon meshes: copy the cell arrays directly (the generic
+    // per-cell loop below costs more than the whole tree build).
+    if (ug)
+    {
+      const unsigned char* t = ug->GetCellTypesArray()->GetPointer(0);
+      std::copy(t, t + nc, types.begin());
+    }
     bool fits = true;
     auto copyArrays = [&](auto* off, auto* cn) {
       const auto* o = off->GetPointer(0);
@@ -675,6 +687,15 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     {
       vtkErrorMacro("BuildLocator: more than 2^32 - 1 connectivity entries are not supported.");
       return;
+    }
+    if (!ug)
+    {
+      // vtkPolyData's types of polygons: 3 points a triangle, 4 a quad; other sizes are asked.
+      for (vtkIdType c = 0; c < nc; ++c)
+      {
+        const uint32_t n = offsets[c + 1] - offsets[c];
+        types[c] = static_cast<uint8_t>(n == 3 ? VTK_TRIANGLE : (n == 4 ? VTK_QUAD : ds->GetCellType(c)));
+      }
     }
   }
   else
