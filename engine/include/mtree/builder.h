@@ -743,20 +743,30 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     // Scatter existence from every existing child entry to its parent (a byte store of 1 by
     // every writer: the result does not depend on their order). Only allocated child entries
     // are read, contiguously.
+    // Block by block: a block's first entry gives its origin (entryCoords' divisions once per
+    // block, not per entry: a surface's leaf level has ~10^6 entries), its entries' coordinates
+    // are the origin plus the bits of the local index.
     uint8_t* pdata = parent.data().data();
-    const int64_t nce = int64_t(l + 1 == H ? tree.leaves_.data().size() : tree.inner_[l + 1].data().size());
+    const int64_t ncb = int64_t(l + 1 == H ? tree.leaves_.numBlocks() : tree.inner_[l + 1].numBlocks());
+    const uint32_t cbv = cd.blockVolume;
+    const int lbx = cd.logBlock[0], lby = cd.logBlock[1];
+    const uint32_t mx = (1u << lbx) - 1, my = (1u << lby) - 1;
     const MtLeafRange* leafData = tree.leaves_.data().data();
     const uint8_t* innerData = l + 1 == H ? nullptr : tree.inner_[l + 1].data().data();
-#pragma omp parallel for num_threads(threads) schedule(static) if (nce > 16384)
-    for (int64_t e = 0; e < nce; ++e) {
-      const bool exists = innerData ? innerData[e] != 0 : leafData[e].begin != MT_NULL;
-      if (!exists) continue;
-      int c[3];
-      if (innerData) tree.inner_[l + 1].entryCoords(static_cast<uint32_t>(e), c);
-      else tree.leaves_.entryCoords(static_cast<uint32_t>(e), c);
-      const uint32_t s = parent.storageIndex(c[0] >> sh[0], c[1] >> sh[1], c[2] >> sh[2]);
+#pragma omp parallel for num_threads(threads) schedule(static) if (ncb * cbv > 16384)
+    for (int64_t b = 0; b < ncb; ++b) {
+      int o[3];
+      const uint32_t first = static_cast<uint32_t>(b) * cbv;
+      if (innerData) tree.inner_[l + 1].entryCoords(first, o);
+      else tree.leaves_.entryCoords(first, o);
+      for (uint32_t q = 0; q < cbv; ++q) {
+        const bool exists = innerData ? innerData[first + q] != 0 : leafData[first + q].begin != MT_NULL;
+        if (!exists) continue;
+        const int c[3] = {o[0] | int(q & mx), o[1] | int((q >> lbx) & my), o[2] | int(q >> (lbx + lby))};
+        const uint32_t s = parent.storageIndex(c[0] >> sh[0], c[1] >> sh[1], c[2] >> sh[2]);
 #pragma omp atomic write
-      pdata[s] = 1;
+        pdata[s] = 1;
+      }
     }
   }
   tree.empty_ = false;
