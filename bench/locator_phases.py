@@ -14,7 +14,9 @@ else with matrixtree.read_grid. --locator (repeatable) keeps only the named conf
 locator's own rule, one per 32768 cells); every phase of GetBuildPhases() and the total are
 the median over the N builds, as is vtkStaticCellLocator's build. The 1-minute load average is
 printed with every grid: on a shared machine compare ratios taken in the same run.
---build-dir (or $MATRIXTREE_BUILD_DIR) picks the build tree whose python/matrixtree_vtk is
+--static-threads N runs vtkStaticCellLocator's build (vtkSMPTools) on N threads; by default it
+uses VTK's default, as bench/locators.py does (TBB: all cores here, while --threads 1 builds the
+matrix trees on one). --build-dir (or $MATRIXTREE_BUILD_DIR) picks the build tree whose python/matrixtree_vtk is
 imported (default: the one the .venv's .pth names, build/).
 Columns: bytes (GetMemorySize), static_bytes (vtkStaticCellLocator's, estimated from its layout
 as bench/cpp/locators_bench.cxx does: VTK 9.1 reports none) and bytes_ratio, references and
@@ -44,6 +46,9 @@ def parse() -> argparse.Namespace:
                    help="locator build sort (default: the locator's default)")
     p.add_argument("--threads", type=int, default=0,
                    help="SetNumberOfThreads of the matrix locators (default 0: the locator's rule)")
+    p.add_argument("--static-threads", type=int, default=0,
+                   help="vtkSMPTools threads of vtkStaticCellLocator's build (default 0: VTK's default, as "
+                        "bench/locators.py runs it; 1 compares one thread with one thread)")
     p.add_argument("--json", default=None)
     return p.parse_args()
 
@@ -96,6 +101,9 @@ def main() -> int:
     from matrixtree import scenes
     from matrixtree_vtk import vtkMatrixTreeLocator
     from vtkmodules.vtkCommonDataModel import vtkStaticCellLocator
+    from vtkmodules.vtkCommonCore import vtkSMPTools
+    if a.static_threads > 0:
+        vtkSMPTools.Initialize(a.static_threads)
 
     folders = ["cfd", "meshes"] if a.all else (["meshes"] if a.meshes else ["cfd"])
     paths = a.grid or sorted(p for f in folders for p in glob.glob(os.path.join(scenes.data_dir(), f, "*.*"))
@@ -145,6 +153,7 @@ def main() -> int:
                         phases.setdefault(key, []).append(float(ms))
                 row = {"grid": os.path.basename(path), "cells": ds.GetNumberOfCells(), "locator": name,
                        "strategy": sort or "default", "load1": round(load, 2),
+                       "static_threads": vtkSMPTools.GetEstimatedNumberOfThreads(),
                        "height": loc.GetTreeHeight(), "references": loc.GetNumberOfReferences(),
                        "refs_per_cell": loc.GetNumberOfReferences() / max(1, ds.GetNumberOfCells()),
                        "bytes": loc.GetMemorySize(), "static_bytes": st_bytes,
