@@ -141,6 +141,16 @@ TEST(BuildSort, CountingGivesTheRadixTreeOnACfdGrid) {
       expectSortsAgree(cells, kind, overlap, 0, "pipe_flow_tets");
 }
 
+TEST(BuildSort, BothWaysOfCountingLeavesGiveTheRadixTree) {
+  // With two threads count+mark counts the references per leaf when the dense leaf level has
+  // at most 2^21 entries and a separate pass counts them beyond: lucy as cells (what the
+  // locator builds) at height 7 (2^21 leaves) and 8 (2^24) takes both, and the CFD grid as well.
+  const CellSet cells = asCells(mtest::loadRealMesh("meshes/lucy.ply"));
+  for (int height : {7, 8}) expectSortsAgree(cells, TreeKind::Octree, OverlapMode::Exact, height, "lucy cells");
+  const CellSet grid = loadGrid("cfd/brick_tets.su2");
+  for (int height : {5, 8}) expectSortsAgree(grid, TreeKind::Octree, OverlapMode::Exact, height, "brick_tets");
+}
+
 TEST(BuildSort, LongLeavesAtALowHeight) {
   // Height 3 over ~70k triangles: leaves of hundreds to thousands of references, which the
   // counting sort orders with std::sort instead of an insertion sort.

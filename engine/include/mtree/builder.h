@@ -10,13 +10,15 @@
 //   offsets     leaf ranges from neighbouring keys in the sorted array (step 8)
 //   refdata     only with per-reference data: a pass over the leaves, one call per reference
 // or with BuildSort::Counting (the leaf storage is dense after alloc):
-//   leaf counts references per leaf storage entry (atomic increments with several threads)
+//   leaf counts references per leaf storage entry, counted by count+mark (each thread in its own
+//               first-touch numbering of the blocks) and copied or added to their final places;
+//               with several threads on a large leaf level, a pass with atomic increments
 //   leaf scan   exclusive scan over the leaf storage; leaf ranges from it
 //   scatter     each reference's primitive id (and its data) at its leaf's next slot
 //   leaf order  with several threads only: each leaf's ids sorted ascending
 // and in both
 //   propagate   existence up to the root, level by level (step 9)
-// Pairs, leaf counts and scatter repeat no overlap test that count+mark made: its verdicts for
+// Pairs and scatter repeat no overlap test that count+mark made: its verdicts for
 // a primitive's first 64 candidate leaves are kept as a bit mask.
 // The result depends only on the input, never on the thread count or the sort: every parallel
 // step writes to positions fixed by a scan, the radix sort is stable and the counting sort
@@ -381,23 +383,40 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   masks.resize(exact ? static_cast<size_t>(n) : 0);
   marks.assign(tree.leaves_.pointerCount(), 0);
   const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
-  // One-thread counting builds also count the references per leaf here, where every overlapped
-  // leaf is in hand, instead of enumerating them all again after the allocation: a block gets
-  // a provisional number when first touched (blockOrder, per pointer-matrix entry) and its
-  // leaves' counts go to leafCounts in that numbering; after the allocation each block's counts
-  // are copied to its final place. The counts, hence the tree, are those of the separate pass.
-  const bool countHere = opt.sort == BuildSort::Counting && threads == 1;
+  // Counting builds also count the references per leaf here, where every overlapped leaf is in
+  // hand, instead of enumerating them all again after the allocation: each thread gives a block
+  // a provisional number of its own when it first touches it (blockOrder, per pointer-matrix
+  // entry) and counts its leaves in that numbering (leafCounts), without atomics; after the
+  // allocation the threads' counts of each block are copied (one thread) or added up to its
+  // final place. The counts, hence the tree, are those of the separate pass.
+  // With several threads each thread touches most blocks, so it holds counts for most of the
+  // leaf storage, then added up: that pays on volume grids (pipe_flow_tets, two threads: leaf
+  // counts 7-8 -> 0.1 ms) but not on surfaces, whose leaf storage is ~10^6 entries (lucy:
+  // count+mark +7-17 ms, leaf counts only -3-6 ms); there, and past 2^21 leaves in the dense
+  // level, the separate counting pass stays.
+  const bool countHere =
+      opt.sort == BuildSort::Counting &&
+      (threads == 1 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
   const uint32_t blockVolume = tree.leaves_.blockVolume();
-  std::vector<uint32_t>& blockOrder = scratch.tmpKeys;
-  std::vector<uint32_t>& leafCounts = scratch.tmpValues;
-  uint32_t touched = 0;
+  struct ThreadCounts {
+    std::vector<uint32_t> ownOrder, ownCounts;
+    std::vector<uint32_t>* blockOrder = &ownOrder;
+    std::vector<uint32_t>* leafCounts = &ownCounts;
+    uint32_t touched = 0;
+  };
+  std::vector<ThreadCounts> perThread(countHere ? static_cast<size_t>(threads) : 0);
   if (countHere) {
-    blockOrder.assign(tree.leaves_.pointerCount(), MT_NULL);
-    leafCounts.clear();
+    perThread[0].blockOrder = &scratch.tmpKeys;  // thread 0 reuses the tree's work arrays
+    perThread[0].leafCounts = &scratch.tmpValues;
+    for (ThreadCounts& t : perThread) {
+      t.blockOrder->assign(tree.leaves_.pointerCount(), MT_NULL);
+      t.leafCounts->clear();
+    }
   }
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
   for (int64_t i = 0; i < n; ++i) {
     const auto prim = prims.local(i);
+    ThreadCounts* tc = countHere ? &perThread[static_cast<size_t>(omp_get_thread_num())] : nullptr;
     int lo[3], hi[3];
     cellRange(prim.bounds(), lo, hi);
     // A candidate range one cell thick along two axes needs no test: the triangle is convex, so
@@ -421,11 +440,12 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
               marks[blk] = 1;
               lastBlock = blk;
               if (countHere) {
-                if (blockOrder[blk] == MT_NULL) {
-                  blockOrder[blk] = touched++;
-                  leafCounts.resize(size_t(touched) * blockVolume, 0);
+                std::vector<uint32_t>& order = *tc->blockOrder;
+                if (order[blk] == MT_NULL) {
+                  order[blk] = tc->touched++;
+                  tc->leafCounts->resize(size_t(tc->touched) * blockVolume, 0);
                 }
-                blockCounts = leafCounts.data() + size_t(blockOrder[blk]) * blockVolume;
+                blockCounts = tc->leafCounts->data() + size_t(order[blk]) * blockVolume;
               }
             }
             if (countHere) ++blockCounts[leaves.localIndex(ii, j, k)];
@@ -587,10 +607,10 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     }
   } else {
     // ---- counting sort over the dense leaf storage --------------------------------------------
-    // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): count the
-    // references per leaf, scan, scatter. With several threads the counters are shared (atomic
-    // increments and cursors) and each leaf's ids are sorted afterwards; with one thread every
-    // update is a plain one and the primitives arrive in ascending order.
+    // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): the
+    // references per leaf (counted by count+mark, or by a pass here), scan, scatter. With several threads the
+    // cursors are shared (atomic) and each leaf's ids are sorted afterwards; with one thread
+    // every update is a plain one and the primitives arrive in ascending order.
     const bool shared = threads > 1;
     const size_t L = tree.leaves_.data().size();
     const int64_t nl = static_cast<int64_t>(L);
@@ -598,25 +618,38 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     std::vector<uint32_t>& cursor = scratch.offsets;  // next free slot per leaf
     cursor.resize(L);
     if (countHere) {
-      // Counted by count+mark in first-touch block order: every allocated block was touched.
-      perLeaf.resize(L);
+      // Counted by count+mark in each thread's first-touch block order: every allocated block
+      // was touched by some thread; one thread's counts are copied, several threads' added.
       const std::vector<uint32_t>& ptr = tree.leaves_.pointers();
-      for (size_t p = 0; p < ptr.size(); ++p)
-        if (blockOrder[p] != MT_NULL)
-          std::memcpy(perLeaf.data() + size_t(ptr[p]) * blockVolume, leafCounts.data() + size_t(blockOrder[p]) * blockVolume,
-                      blockVolume * sizeof(uint32_t));
+      const int64_t np = static_cast<int64_t>(ptr.size());
+      if (threads == 1) {
+        perLeaf.resize(L);
+      } else {
+        perLeaf.assign(L, 0);
+      }
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+      for (int64_t p = 0; p < np; ++p) {
+        if (ptr[p] == MT_NULL) continue;
+        uint32_t* dst = perLeaf.data() + size_t(ptr[p]) * blockVolume;
+        for (const ThreadCounts& t : perThread) {
+          const uint32_t b = (*t.blockOrder)[p];
+          if (b == MT_NULL) continue;
+          const uint32_t* src = t.leafCounts->data() + size_t(b) * blockVolume;
+          if (threads == 1) {
+            std::memcpy(dst, src, blockVolume * sizeof(uint32_t));
+          } else {
+            for (uint32_t q = 0; q < blockVolume; ++q) dst[q] += src[q];
+          }
+        }
+      }
     } else {
       perLeaf.assign(L, 0);
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
       for (int64_t i = 0; i < n; ++i) {
         forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
           uint32_t& c = perLeaf[leaves.storageIndex(x, y, z)];
-          if (shared) {
 #pragma omp atomic update
-            ++c;
-          } else {
-            ++c;
-          }
+          ++c;
         });
       }
     }
