@@ -17,6 +17,7 @@
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
+#include "vtkSmartPointer.h"
 
 #include "mtree/builder.h"
 #include "mtree/cell_eval.h"
@@ -44,6 +45,9 @@
 
 struct vtkMatrixTreeLocatorInternals
 {
+  // The data set's point array when Cells reads the points from it instead of a copy (float or
+  // double arrays of 3 components): held so that it outlives a SetPoints() on the data set.
+  vtkSmartPointer<vtkDataArray> PointArray;
   mtree::CellSet Cells;
   mtree::MatrixTree Tree;
   mtree::BuildStats Stats;
@@ -676,19 +680,22 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   }
   const vtkIdType np = ds->GetNumberOfPoints();
   const vtkIdType nc = ds->GetNumberOfCells();
-  std::vector<double> pts(static_cast<size_t>(np) * 3);
+  // Float and double point arrays are read in place (as VTK's own locators read the data set),
+  // not copied: no copy to make per build and none to hold. Other arrays (and data sets without
+  // a point array) are copied as doubles.
   vtkPointSet* ps = vtkPointSet::SafeDownCast(ds);
   vtkDataArray* pdata = ps && ps->GetPoints() ? ps->GetPoints()->GetData() : nullptr;
-  if (auto* dbl = vtkDoubleArray::FastDownCast(pdata))
+  vtkFloatArray* viewFloats = nullptr;
+  vtkDoubleArray* viewDoubles = nullptr;
+  if (pdata && pdata->GetNumberOfComponents() == 3 && pdata->GetNumberOfTuples() == np)
   {
-    std::copy(dbl->GetPointer(0), dbl->GetPointer(0) + 3 * np, pts.begin());
+    viewFloats = vtkFloatArray::FastDownCast(pdata);
+    viewDoubles = vtkDoubleArray::FastDownCast(pdata);
   }
-  else if (auto* flt = vtkFloatArray::FastDownCast(pdata))
+  std::vector<double> pts;
+  if (!viewFloats && !viewDoubles)
   {
-    std::copy(flt->GetPointer(0), flt->GetPointer(0) + 3 * np, pts.begin());
-  }
-  else
-  {
+    pts.resize(static_cast<size_t>(np) * 3);
     for (vtkIdType i = 0; i < np; ++i)
     {
       ds->GetPoint(i, &pts[3 * i]);
@@ -708,13 +715,25 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   std::vector<uint32_t> offsets(static_cast<size_t>(nc) + 1, 0), conn;
   std::vector<uint8_t> types(static_cast<size_t>(nc));
   vtkUnstructuredGrid* ug = vtkUnstructuredGrid::SafeDownCast(ds);
-  vtkCellArray* ca = ug ? ug->GetCells() : nullptr;
-  if (ca && ug->GetCellTypesArray() && ca->GetNumberOfCells() == nc)
+  vtkCellArray* ca = ug && ug->GetCellTypesArray() ? ug->GetCells() : nullptr;
+  // Polydata with polygons only (the surface meshes): cell c is polygon c, so its cell array is
+  // copied the same way; the types follow from the sizes below.
+  vtkPolyData* pd = ug ? nullptr : vtkPolyData::SafeDownCast(ds);
+  const bool polysOnly = pd && pd->GetPolys() && pd->GetNumberOfVerts() == 0 && pd->GetNumberOfLines() == 0 &&
+    pd->GetNumberOfStrips() == 0;
+  if (!ca && polysOnly)
   {
-    // Unstructured grids: copy the cell arrays directly (the generic per-cell loop below costs
-    // more than the whole tree build).
-    const unsigned char* t = ug->GetCellTypesArray()->GetPointer(0);
-    std::copy(t, t + nc, types.begin());
+    ca = pd->GetPolys();
+  }
+  if (ca && ca->GetNumberOfCells() == nc)
+  {
+    // Unstructured grids and polygon meshes: copy the cell arrays directly (the generic
+    // per-cell loop below costs more than the whole tree build).
+    if (ug)
+    {
+      const unsigned char* t = ug->GetCellTypesArray()->GetPointer(0);
+      std::copy(t, t + nc, types.begin());
+    }
     bool fits = true;
     auto copyArrays = [&](auto* off, auto* cn) {
       const auto* o = off->GetPointer(0);
@@ -750,6 +769,15 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     {
       vtkErrorMacro("BuildLocator: more than 2^32 - 1 connectivity entries are not supported.");
       return;
+    }
+    if (!ug)
+    {
+      // vtkPolyData's types of polygons: 3 points a triangle, 4 a quad; other sizes are asked.
+      for (vtkIdType c = 0; c < nc; ++c)
+      {
+        const uint32_t n = offsets[c + 1] - offsets[c];
+        types[c] = static_cast<uint8_t>(n == 3 ? VTK_TRIANGLE : (n == 4 ? VTK_QUAD : ds->GetCellType(c)));
+      }
     }
   }
   else
@@ -787,8 +815,24 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   double convertMs2 = 0;
   try
   {
-    in.Cells = mtree::CellSet(
-      std::move(pts), std::move(offsets), std::move(conn), std::move(types), buildThreads);
+    in.PointArray = nullptr;
+    if (viewFloats)
+    {
+      in.Cells = mtree::CellSet(viewFloats->GetPointer(0), static_cast<size_t>(np), std::move(offsets),
+        std::move(conn), std::move(types), buildThreads);
+      in.PointArray = viewFloats;
+    }
+    else if (viewDoubles)
+    {
+      in.Cells = mtree::CellSet(viewDoubles->GetPointer(0), static_cast<size_t>(np), std::move(offsets),
+        std::move(conn), std::move(types), buildThreads);
+      in.PointArray = viewDoubles;
+    }
+    else
+    {
+      in.Cells = mtree::CellSet(
+        std::move(pts), std::move(offsets), std::move(conn), std::move(types), buildThreads);
+    }
     in.Cells.setAxes(this->FullSeparatingAxes ? mtree::CellAxes::All : mtree::CellAxes::Faces);
     convertMs2 = msSince(tStart) - convertMs;
     // The quantized leaf boxes are the builder's per-reference data: written at the scatter

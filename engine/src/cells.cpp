@@ -2,6 +2,8 @@
 
 #include <omp.h>
 
+#include <cstring>
+
 #include "mtree/parallel.h"
 
 namespace mtree {
@@ -62,10 +64,11 @@ std::vector<uint32_t> CellSet::narrow(const std::vector<int64_t>& v, const char*
 }
 
 void CellSet::validate() const {
-  for (size_t i = 0; i < pts_.size(); ++i)
-    if (!std::isfinite(pts_[i]))
+  const size_t nc = 3 * pts_.n;
+  for (size_t i = 0; i < nc; ++i)
+    if (!std::isfinite(floatPoints_ ? double(pts_.fp[i]) : pts_.dp[i]))
       throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
-  const uint64_t np = pts_.size() / 3;
+  const uint64_t np = pts_.n;
   for (size_t c = 0; c + 1 < off_.size(); ++c)
     if (off_[c + 1] < off_[c]) throw std::invalid_argument("CellSet: offsets must not decrease");
   for (size_t k = 0; k < conn_.size(); ++k)
@@ -91,14 +94,30 @@ void CellSet::dropUniformOffsets() {
 void CellSet::keepFloatPointsIfExact() {
   // Grids read from float arrays (most VTK files) arrive here widened to doubles: kept as
   // floats they take half the memory and give back the very same doubles.
-  for (double x : pts_)
+  if (pts_.view) return;  // nothing held to save
+  for (double x : pts_.d)
     if (static_cast<double>(static_cast<float>(x)) != x) return;
-  ptsF_.assign(pts_.begin(), pts_.end());
-  std::vector<double>().swap(pts_);
+  pts_.f.assign(pts_.d.begin(), pts_.d.end());
+  std::vector<double>().swap(pts_.d);
+  pts_.rebind();
   floatPoints_ = true;
 }
 
 namespace {
+// std::nextafter(f, -inf) for a finite f, without the libm call (one per bound of every cell
+// whose coordinates are not floats: most of the cached bounds' cost on double grids): the
+// float below a positive one has the bit pattern one lower, below a negative one one higher,
+// and below either zero is the negative smallest subnormal.
+inline float nextFloatDown(float f) {
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  if (f == 0) u = 0x80000001u;
+  else if (f > 0) --u;
+  else ++u;
+  std::memcpy(&f, &u, sizeof f);
+  return f;
+}
+
 // The float nearest x on the side of `dir` (-1: not above x, +1: not below x).
 inline float roundOut(double x, int dir) {
   const double big = std::numeric_limits<float>::max();
@@ -106,8 +125,8 @@ inline float roundOut(double x, int dir) {
   if (x > big) return dir < 0 ? std::numeric_limits<float>::max() : inf;
   if (x < -big) return dir < 0 ? -inf : -std::numeric_limits<float>::max();
   float f = static_cast<float>(x);
-  if (dir < 0 && static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-  if (dir > 0 && static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  if (dir < 0 && static_cast<double>(f) > x) f = nextFloatDown(f);
+  if (dir > 0 && static_cast<double>(f) < x) f = -nextFloatDown(-f);
   return f;
 }
 }  // namespace

@@ -141,6 +141,16 @@ TEST(BuildSort, CountingGivesTheRadixTreeOnACfdGrid) {
       expectSortsAgree(cells, kind, overlap, 0, "pipe_flow_tets");
 }
 
+TEST(BuildSort, BothWaysOfCountingLeavesGiveTheRadixTree) {
+  // With two threads count+mark counts the references per leaf when the dense leaf level has
+  // at most 2^21 entries and a separate pass counts them beyond: lucy as cells (what the
+  // locator builds) at height 7 (2^21 leaves) and 8 (2^24) takes both, and the CFD grid as well.
+  const CellSet cells = asCells(mtest::loadRealMesh("meshes/lucy.ply"));
+  for (int height : {7, 8}) expectSortsAgree(cells, TreeKind::Octree, OverlapMode::Exact, height, "lucy cells");
+  const CellSet grid = loadGrid("cfd/brick_tets.su2");
+  for (int height : {5, 8}) expectSortsAgree(grid, TreeKind::Octree, OverlapMode::Exact, height, "brick_tets");
+}
+
 TEST(BuildSort, LongLeavesAtALowHeight) {
   // Height 3 over ~70k triangles: leaves of hundreds to thousands of references, which the
   // counting sort orders with std::sort instead of an insertion sort.
@@ -194,6 +204,76 @@ TEST(LeafBoxes, FusedEqualGatheredOnASurface) {
   for (TreeKind kind : {TreeKind::Octree, TreeKind::RegularKd})
     expectLeafBoxesAsGathered(cells, kind, OverlapMode::Exact, 0, "bunny");
   expectLeafBoxesAsGathered(cells, TreeKind::Octree, OverlapMode::BoundingBox, 3, "bunny");
+}
+
+TEST(LeafBoxes, FusedEqualGatheredWithCellsLargerThanTheScatterTables) {
+  // The counting scatter computes each axis's bytes once per cell and candidate row (tables of
+  // up to 32 leaves per axis) and falls back to one call per reference beyond that: the bunny
+  // plus three triangles across the whole box (64 leaves per axis at its height) takes
+  // both paths in one build, with the same bytes as the gather.
+  const mtree::TriangleMesh mesh = mtest::loadRealMesh("meshes/bunny.ply");
+  std::vector<double> pts = mesh.points();
+  std::vector<uint32_t> tris = mesh.triangles();
+  mtree::Box b;
+  for (size_t i = 0; i < pts.size(); i += 3) b.extend(mtree::Vec3(&pts[i]));
+  const uint32_t base = static_cast<uint32_t>(pts.size() / 3);
+  pts.insert(pts.end(), {b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.lo.z, b.hi.x, b.lo.y, b.hi.z,
+                         b.lo.x, b.hi.y, b.hi.z});
+  tris.insert(tris.end(), {base, base + 1, base + 2, base + 1, base + 2, base + 3, base, base + 3, base + 1});
+  const CellSet cells = asCells(mtree::TriangleMesh(std::move(pts), std::move(tris)));
+  MatrixTree t;
+  MatrixTreeBuilder<CellSet>::build(cells, opts(TreeKind::Octree, OverlapMode::Exact, BuildSort::Counting, 1), t,
+                                    nullptr);
+  ASSERT_GE(t.dim(t.height(), 0), 64) << "the large triangles must span more than a table's 32 leaves";
+  expectLeafBoxesAsGathered(cells, TreeKind::Octree, OverlapMode::Exact, 0, "bunny + large triangles");
+}
+
+/// A CellSet seen without CellSet::Local::vertices(): the builder then runs the separating-axis
+/// test on every candidate leaf (the path before the point shortcut of count+mark).
+struct EveryCandidateTested {
+  const CellSet* cells;
+  struct Local {
+    CellSet::Local cell;
+    mtree::Box bounds() const { return cell.bounds(); }
+    CellSet::Local::Tester tester(mtree::Vec3 half) const { return cell.tester(half); }
+  };
+  size_t size() const { return cells->size(); }
+  mtree::Box bounds(size_t i) const { return cells->bounds(i); }
+  Local local(size_t i) const { return Local{cells->local(i)}; }
+};
+
+/// count+mark takes a candidate leaf that contains a point of the cell as overlapped without the
+/// separating-axis test (and builds no tester when those are all the candidates): the tree must
+/// be the one the test on every candidate gives, leaf for leaf and reference for reference.
+void expectPointShortcutExact(const CellSet& cells, const std::string& what) {
+  for (TreeKind kind : {TreeKind::Octree, TreeKind::RegularKd})
+    for (int height : {0, 1}) {
+      BuildOptions o = opts(kind, OverlapMode::Exact, BuildSort::Counting, 1);
+      o.leafScale = 1.0;  // the locator's automatic height
+      o.maxCandidates = 16;
+      MatrixTree tested, shortcut;
+      mtree::BuildStats st;
+      MatrixTreeBuilder<EveryCandidateTested>::build(EveryCandidateTested{&cells}, o, tested, &st);
+      if (height) o.height = st.height + 1;  // smaller leaves: more candidates hold no point
+      if (height) MatrixTreeBuilder<EveryCandidateTested>::build(EveryCandidateTested{&cells}, o, tested, nullptr);
+      MatrixTreeBuilder<CellSet>::build(cells, o, shortcut, nullptr);
+      mtest::expectSameTree(tested, shortcut, what + ": " + name(o));
+    }
+}
+
+TEST(CountMark, PointShortcutGivesTheTestedTreeOnCfdGrids) {
+  for (const char* g : {"cfd/brick_hex.su2", "cfd/brick_prism.su2", "cfd/brick_pyra.su2", "cfd/brick_tets.su2",
+                        "cfd/pipe_flow_tets.vtu", "cfd/pipe_lumen_tets.vtu"}) {
+    CellSet cells = loadGrid(g);
+    expectPointShortcutExact(cells, g);
+    cells.setAxes(mtree::CellAxes::All);
+    expectPointShortcutExact(cells, std::string(g) + " (all axes)");
+  }
+}
+
+TEST(CountMark, PointShortcutGivesTheTestedTreeOnSurfaces) {
+  for (const char* m : {"meshes/bunny.ply", "meshes/lucy.ply"})
+    expectPointShortcutExact(asCells(mtest::loadRealMesh(m)), m);
 }
 
 TEST(LeafBoxes, QuantizerMatchesTheFloorCeilFormula) {

@@ -3,6 +3,8 @@
 // Every accessor answers as with the arrays given, and the tree built over it is the same.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -134,6 +136,50 @@ TEST(CellSet, ExactFloatPointsAreKeptAsFloats) {
   vtkSmartPointer<vtkUnstructuredGrid> h = mtest::readGrid("cfd/brick_hex.su2");
   ASSERT_TRUE(h);
   EXPECT_FALSE(mtest::cellSet(h).floatPoints());
+}
+
+/// The cached bounds are the tightest floats outside the exact bounds: lo the largest float not
+/// above the exact minimum, hi the smallest float not below the exact maximum (std::nextafter
+/// decides "tightest", independently of the bit arithmetic that rounds them).
+void expectTightestFloatBounds(const CellSet& cells, const std::string& what) {
+  SCOPED_TRACE(what);
+  const float inf = std::numeric_limits<float>::infinity();
+  for (size_t c = 0; c < cells.size(); ++c) {
+    const mtree::Box e = cells.exactBounds(c);
+    const float* f = cells.cellBox(c);
+    for (int a = 0; a < 3; ++a) {
+      ASSERT_LE(double(f[2 * a]), e.lo[a]) << "cell " << c << " axis " << a;
+      ASSERT_GT(double(std::nextafter(f[2 * a], inf)), e.lo[a]) << "cell " << c << " axis " << a;
+      ASSERT_GE(double(f[2 * a + 1]), e.hi[a]) << "cell " << c << " axis " << a;
+      ASSERT_LT(double(std::nextafter(f[2 * a + 1], -inf)), e.hi[a]) << "cell " << c << " axis " << a;
+    }
+  }
+}
+
+TEST(CellSet, CachedBoundsAreTheTightestFloatsOutside) {
+  // SU2 coordinates are doubles that are no floats: every bound is rounded outwards.
+  vtkSmartPointer<vtkUnstructuredGrid> g = mtest::readGrid("cfd/brick_pyra.su2");
+  ASSERT_TRUE(g);
+  const CellSet grid = mtest::cellSet(g);
+  ASSERT_FALSE(grid.floatPoints());
+  expectTightestFloatBounds(grid, "brick_pyra");
+  // Edge cases of the rounding: both signs, zeros, subnormals, values next to zero and next to
+  // a power of two, exact floats, one tetrahedron per coordinate value.
+  const double tiny = std::numeric_limits<float>::denorm_min();
+  const double values[] = {0.0, -0.0, 0.1, -0.1, 1.0, -1.0, 1.0 + 1e-12, -(1.0 + 1e-12), 1.0 - 1e-12,
+                           -(1.0 - 1e-12), 0.5 * tiny, -0.5 * tiny, 1.5 * tiny, -1.5 * tiny, 1e-300, -1e-300,
+                           3e38, -3e38, 1e5 + 1e-7, -(1e5 + 1e-7)};
+  std::vector<double> pts;
+  std::vector<uint32_t> off = {0}, conn;
+  for (double v : values) {
+    const uint32_t b = static_cast<uint32_t>(pts.size() / 3);
+    // The value is the minimum on x, the maximum on y, and both on z (a flat tetrahedron).
+    pts.insert(pts.end(), {v, v - 1, v, v + 1, v - 2, v, v + 2, v, v, v + 3, v - 3, v});
+    conn.insert(conn.end(), {b, b + 1, b + 2, b + 3});
+    off.push_back(static_cast<uint32_t>(conn.size()));
+  }
+  const CellSet edge(pts, off, conn, std::vector<uint8_t>(off.size() - 1, mtree::kTetra));
+  expectTightestFloatBounds(edge, "edge cases");
 }
 
 }  // namespace

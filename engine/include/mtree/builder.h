@@ -10,13 +10,15 @@
 //   offsets     leaf ranges from neighbouring keys in the sorted array (step 8)
 //   refdata     only with per-reference data: a pass over the leaves, one call per reference
 // or with BuildSort::Counting (the leaf storage is dense after alloc):
-//   leaf counts references per leaf storage entry (atomic increments with several threads)
+//   leaf counts references per leaf storage entry, counted by count+mark (each thread in its own
+//               first-touch numbering of the blocks) and copied or added to their final places;
+//               with several threads on a large leaf level, a pass with atomic increments
 //   leaf scan   exclusive scan over the leaf storage; leaf ranges from it
 //   scatter     each reference's primitive id (and its data) at its leaf's next slot
 //   leaf order  with several threads only: each leaf's ids sorted ascending
 // and in both
 //   propagate   existence up to the root, level by level (step 9)
-// Pairs, leaf counts and scatter repeat no overlap test that count+mark made: its verdicts for
+// Pairs and scatter repeat no overlap test that count+mark made: its verdicts for
 // a primitive's first 64 candidate leaves are kept as a bit mask.
 // The result depends only on the input, never on the thread count or the sort: every parallel
 // step writes to positions fixed by a scan, the radix sort is stable and the counting sort
@@ -121,6 +123,29 @@ inline void prefetchPrimitive(const P& prims, size_t i) {
   if constexpr (HasPrefetch<P>::value) prims.prefetch(i);
 }
 
+/// Per-reference data that is three per-axis parts, each depending on the primitive and the
+/// leaf's interval on that axis only: fn.axis(uint8_t* out, prim, a, leafLo, leafHi) writes
+/// Bytes / 3 bytes, and the reference's data is the parts of axes 0, 1, 2 in a row. The counting
+/// build's scatter then computes each part once per cell and candidate row/column/slab (a few
+/// per axis) and copies three parts per reference, instead of calling fn per reference.
+template <class F, class P, class = void>
+struct HasAxisData : std::false_type {};
+template <class F, class P>
+struct HasAxisData<F, P,
+                   std::void_t<decltype(std::declval<F&>().axis(std::declval<uint8_t*>(), std::declval<const P&>(), 0,
+                                                                0.0, 0.0))>> : std::true_type {};
+
+/// Primitives that give their points (prim.vertices(Vec3* out) -> count, at most 8; 0 when
+/// unknown) and a tester from them (prim.tester(half, points, count)): count+mark then takes a
+/// candidate leaf that contains a point of the primitive as overlapped without a separating-
+/// axis test, and builds no tester when those leaves are all the candidates (see there).
+template <class L, class = void>
+struct HasVertices : std::false_type {};
+template <class L>
+struct HasVertices<L, std::void_t<decltype(std::declval<const L&>().vertices(std::declval<Vec3*>())),
+                                  decltype(std::declval<const L&>().tester(Vec3(), std::declval<const Vec3*>(), 0))>>
+    : std::true_type {};
+
 struct PhaseClock {
   using clock = std::chrono::steady_clock;
   clock::time_point start = clock::now(), last = start;
@@ -182,14 +207,19 @@ int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, dou
   // Mean number of candidate leaves (bounding-box cells) of the sampled primitives at height h.
   auto meanCandidates = [&](int h) {
     const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
+    // Per axis once, not per sample (ldexp and the division were most of this loop).
+    double inv[3];
+    int hiCell[3];
+    for (int a = 0; a < 3; ++a) {
+      inv[a] = std::ldexp(1.0, ld[a]) / ext[a];
+      hiCell[a] = (1 << ld[a]) - 1;
+    }
     double sum = 0;
     for (const Box& b : sample) {
       double c = 1;
-      for (int a = 0; a < 3; ++a) {
-        const double inv = std::ldexp(1.0, ld[a]) / ext[a];
-        const int hiCell = (1 << ld[a]) - 1;
-        c *= cellIndex((b.hi[a] - root.lo[a]) * inv, 0, hiCell) - cellIndex((b.lo[a] - root.lo[a]) * inv, 0, hiCell) + 1;
-      }
+      for (int a = 0; a < 3; ++a)
+        c *= cellIndex((b.hi[a] - root.lo[a]) * inv[a], 0, hiCell[a]) -
+             cellIndex((b.lo[a] - root.lo[a]) * inv[a], 0, hiCell[a]) + 1;
       sum += c;
     }
     return sum / static_cast<double>(sample.size());
@@ -353,9 +383,40 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   masks.resize(exact ? static_cast<size_t>(n) : 0);
   marks.assign(tree.leaves_.pointerCount(), 0);
   const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
+  // Counting builds also count the references per leaf here, where every overlapped leaf is in
+  // hand, instead of enumerating them all again after the allocation: each thread gives a block
+  // a provisional number of its own when it first touches it (blockOrder, per pointer-matrix
+  // entry) and counts its leaves in that numbering (leafCounts), without atomics; after the
+  // allocation the threads' counts of each block are copied (one thread) or added up to its
+  // final place. The counts, hence the tree, are those of the separate pass.
+  // With several threads each thread touches most blocks, so it holds counts for most of the
+  // leaf storage, then added up: that pays on volume grids (pipe_flow_tets, two threads: leaf
+  // counts 7-8 -> 0.1 ms) but not on surfaces, whose leaf storage is ~10^6 entries (lucy:
+  // count+mark +7-17 ms, leaf counts only -3-6 ms); there, and past 2^21 leaves in the dense
+  // level, the separate counting pass stays.
+  const bool countHere =
+      opt.sort == BuildSort::Counting &&
+      (threads == 1 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
+  const uint32_t blockVolume = tree.leaves_.blockVolume();
+  struct ThreadCounts {
+    std::vector<uint32_t> ownOrder, ownCounts;
+    std::vector<uint32_t>* blockOrder = &ownOrder;
+    std::vector<uint32_t>* leafCounts = &ownCounts;
+    uint32_t touched = 0;
+  };
+  std::vector<ThreadCounts> perThread(countHere ? static_cast<size_t>(threads) : 0);
+  if (countHere) {
+    perThread[0].blockOrder = &scratch.tmpKeys;  // thread 0 reuses the tree's work arrays
+    perThread[0].leafCounts = &scratch.tmpValues;
+    for (ThreadCounts& t : perThread) {
+      t.blockOrder->assign(tree.leaves_.pointerCount(), MT_NULL);
+      t.leafCounts->clear();
+    }
+  }
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
   for (int64_t i = 0; i < n; ++i) {
     const auto prim = prims.local(i);
+    ThreadCounts* tc = countHere ? &perThread[static_cast<size_t>(omp_get_thread_num())] : nullptr;
     int lo[3], hi[3];
     cellRange(prim.bounds(), lo, hi);
     // A candidate range one cell thick along two axes needs no test: the triangle is convex, so
@@ -365,11 +426,12 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     uint32_t c = 0, cand = 0;
     uint64_t mask = 0;
     size_t lastBlock = ~size_t{0};
+    uint32_t* blockCounts = nullptr;  // countHere: the counts of block lastBlock
     auto visit = [&](auto&& overlaps) {
       for (int k = lo[2]; k <= hi[2]; ++k)
         for (int j = lo[1]; j <= hi[1]; ++j)
           for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
-            if (!overlaps(ii, j, k)) continue;
+            if (!overlaps(ii, j, k, cand)) continue;
             if (cand < 64) mask |= uint64_t{1} << cand;
             ++c;
             const size_t blk = leaves.pointerIndex(ii, j, k);
@@ -377,15 +439,58 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
 #pragma omp atomic write
               marks[blk] = 1;
               lastBlock = blk;
+              if (countHere) {
+                std::vector<uint32_t>& order = *tc->blockOrder;
+                if (order[blk] == MT_NULL) {
+                  order[blk] = tc->touched++;
+                  tc->leafCounts->resize(size_t(tc->touched) * blockVolume, 0);
+                }
+                blockCounts = tc->leafCounts->data() + size_t(order[blk]) * blockVolume;
+              }
             }
+            if (countHere) ++blockCounts[leaves.localIndex(ii, j, k)];
           }
     };
-    if (test) {
+    using Local = std::decay_t<decltype(prim)>;
+    if (!test) {
+      visit([](int, int, int, uint32_t) { return true; });
+    } else if constexpr (detail::HasVertices<Local>::value) {
+      // A candidate leaf that contains a point of the primitive overlaps it: the leaf's padded
+      // box holds the point (its index is computed as the candidate range's, and its round-off
+      // is far below the pad), so no separating axis exists and the test would say "overlap"
+      // too: the same verdicts, for a few multiplications per point instead of a dot product
+      // per axis. When those leaves are every candidate (a hexahedron about one leaf wide over
+      // its 2x2x2 leaves), no tester is built at all. Only tried where it can be the case (no
+      // more candidates than points): elsewhere (a tetrahedron over 8 candidates, a triangle)
+      // it saved fewer dot products than it cost.
+      const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
+      const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
+      Vec3 v[8];
+      const int nv = prim.vertices(v);
+      uint64_t known = 0;
+      if (numCand <= uint64_t(nv)) {
+        const int dims[3] = {nx, ny, nz};
+        for (int q = 0; q < nv; ++q) {
+          int c[3];
+          for (int a = 0; a < 3; ++a)
+            c[a] = std::min(std::max(cellIndexNonNegative((v[q][a] - org[a]) * invLeaf[a], 0, dims[a] - 1), lo[a]),
+                            hi[a]);
+          known |= uint64_t{1} << (((c[2] - lo[2]) * w1 + (c[1] - lo[1])) * w0 + (c[0] - lo[0]));
+        }
+      }
+      const uint64_t all = numCand >= 64 ? ~uint64_t{0} : (uint64_t{1} << numCand) - 1;
+      if (numCand <= uint64_t(nv) && known == all) {
+        visit([](int, int, int, uint32_t) { return true; });
+      } else {
+        const auto tester = prim.tester(half, v, nv);
+        visit([&](int x, int y, int z, uint32_t cd) {
+          return (cd < 64 && ((known >> cd) & 1)) || tester.overlaps(cellCentre(x, y, z));
+        });
+      }
+    } else {
       // The separating-axis tester is built only for primitives that need it.
       const auto tester = prim.tester(half);
-      visit([&](int x, int y, int z) { return tester.overlaps(cellCentre(x, y, z)); });
-    } else {
-      visit([](int, int, int) { return true; });
+      visit([&](int x, int y, int z, uint32_t) { return tester.overlaps(cellCentre(x, y, z)); });
     }
     counts[i] = c;
     if (exact) masks[i] = mask;
@@ -502,28 +607,51 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     }
   } else {
     // ---- counting sort over the dense leaf storage --------------------------------------------
-    // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): count the
-    // references per leaf, scan, scatter. With several threads the counters are shared (atomic
-    // increments and cursors) and each leaf's ids are sorted afterwards; with one thread every
-    // update is a plain one and the primitives arrive in ascending order.
+    // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): the
+    // references per leaf (counted by count+mark, or by a pass here), scan, scatter. With several threads the
+    // cursors are shared (atomic) and each leaf's ids are sorted afterwards; with one thread
+    // every update is a plain one and the primitives arrive in ascending order.
     const bool shared = threads > 1;
     const size_t L = tree.leaves_.data().size();
     const int64_t nl = static_cast<int64_t>(L);
     std::vector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
     std::vector<uint32_t>& cursor = scratch.offsets;  // next free slot per leaf
-    perLeaf.assign(L, 0);
     cursor.resize(L);
+    if (countHere) {
+      // Counted by count+mark in each thread's first-touch block order: every allocated block
+      // was touched by some thread; one thread's counts are copied, several threads' added.
+      const std::vector<uint32_t>& ptr = tree.leaves_.pointers();
+      const int64_t np = static_cast<int64_t>(ptr.size());
+      if (threads == 1) {
+        perLeaf.resize(L);
+      } else {
+        perLeaf.assign(L, 0);
+      }
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+      for (int64_t p = 0; p < np; ++p) {
+        if (ptr[p] == MT_NULL) continue;
+        uint32_t* dst = perLeaf.data() + size_t(ptr[p]) * blockVolume;
+        for (const ThreadCounts& t : perThread) {
+          const uint32_t b = (*t.blockOrder)[p];
+          if (b == MT_NULL) continue;
+          const uint32_t* src = t.leafCounts->data() + size_t(b) * blockVolume;
+          if (threads == 1) {
+            std::memcpy(dst, src, blockVolume * sizeof(uint32_t));
+          } else {
+            for (uint32_t q = 0; q < blockVolume; ++q) dst[q] += src[q];
+          }
+        }
+      }
+    } else {
+      perLeaf.assign(L, 0);
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
-    for (int64_t i = 0; i < n; ++i) {
-      forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
-        uint32_t& c = perLeaf[leaves.storageIndex(x, y, z)];
-        if (shared) {
+      for (int64_t i = 0; i < n; ++i) {
+        forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
+          uint32_t& c = perLeaf[leaves.storageIndex(x, y, z)];
 #pragma omp atomic update
           ++c;
-        } else {
-          ++c;
-        }
-      });
+        });
+      }
     }
     clock.lap("leaf counts");
 
@@ -551,13 +679,19 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       refData->resize(static_cast<size_t>(numPairs) * Bytes);
       out = refData->data();
     }
+    using Local = std::decay_t<decltype(prims.local(0))>;
+    constexpr bool byAxis = Bytes > 0 && Bytes % 3 == 0 && detail::HasAxisData<std::decay_t<RefFn>, Local>::value;
+    constexpr size_t axisBytes = Bytes / 3;
+    // Per-axis parts of a cell's candidate range, kept for ranges up to this many leaves per axis.
+    constexpr int kAxisTable = 32;
 #pragma omp parallel num_threads(threads)
     {
       auto f = fn;  // one copy per thread
+      uint8_t table[3][kAxisTable][byAxis ? axisBytes : 1];
 #pragma omp for schedule(dynamic, 512)
       for (int64_t i = 0; i < n; ++i) {
         const auto prim = prims.local(i);
-        forEachLeaf(i, prim, [&](int x, int y, int z) {
+        auto takeSlot = [&](int x, int y, int z) {
           uint32_t& c = cursor[leaves.storageIndex(x, y, z)];
           uint32_t slot;
           if (shared) {
@@ -567,6 +701,27 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
             slot = c++;
           }
           values[slot] = static_cast<uint32_t>(i);
+          return slot;
+        };
+        if constexpr (byAxis) {
+          int lo[3], hi[3];
+          cellRange(prim.bounds(), lo, hi);
+          if (hi[0] - lo[0] < kAxisTable && hi[1] - lo[1] < kAxisTable && hi[2] - lo[2] < kAxisTable) {
+            // The leaf's interval on axis a is leafBox's: org + c * size to org + (c + 1) * size.
+            for (int a = 0; a < 3; ++a)
+              for (int c = lo[a]; c <= hi[a]; ++c)
+                f.axis(table[a][c - lo[a]], prim, a, org[a] + c * leafSize[a], org[a] + (c + 1) * leafSize[a]);
+            forEachLeaf(i, prim, [&](int x, int y, int z) {
+              uint8_t* o = out + size_t(takeSlot(x, y, z)) * Bytes;
+              std::memcpy(o, table[0][x - lo[0]], axisBytes);
+              std::memcpy(o + axisBytes, table[1][y - lo[1]], axisBytes);
+              std::memcpy(o + 2 * axisBytes, table[2][z - lo[2]], axisBytes);
+            });
+            continue;
+          }
+        }
+        forEachLeaf(i, prim, [&](int x, int y, int z) {
+          const uint32_t slot = takeSlot(x, y, z);
           if constexpr (Bytes > 0) f(out + size_t(slot) * Bytes, prim, leafBox(x, y, z));
         });
       }
@@ -621,20 +776,30 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     // Scatter existence from every existing child entry to its parent (a byte store of 1 by
     // every writer: the result does not depend on their order). Only allocated child entries
     // are read, contiguously.
+    // Block by block: a block's first entry gives its origin (entryCoords' divisions once per
+    // block, not per entry: a surface's leaf level has ~10^6 entries), its entries' coordinates
+    // are the origin plus the bits of the local index.
     uint8_t* pdata = parent.data().data();
-    const int64_t nce = int64_t(l + 1 == H ? tree.leaves_.data().size() : tree.inner_[l + 1].data().size());
+    const int64_t ncb = int64_t(l + 1 == H ? tree.leaves_.numBlocks() : tree.inner_[l + 1].numBlocks());
+    const uint32_t cbv = cd.blockVolume;
+    const int lbx = cd.logBlock[0], lby = cd.logBlock[1];
+    const uint32_t mx = (1u << lbx) - 1, my = (1u << lby) - 1;
     const MtLeafRange* leafData = tree.leaves_.data().data();
     const uint8_t* innerData = l + 1 == H ? nullptr : tree.inner_[l + 1].data().data();
-#pragma omp parallel for num_threads(threads) schedule(static) if (nce > 16384)
-    for (int64_t e = 0; e < nce; ++e) {
-      const bool exists = innerData ? innerData[e] != 0 : leafData[e].begin != MT_NULL;
-      if (!exists) continue;
-      int c[3];
-      if (innerData) tree.inner_[l + 1].entryCoords(static_cast<uint32_t>(e), c);
-      else tree.leaves_.entryCoords(static_cast<uint32_t>(e), c);
-      const uint32_t s = parent.storageIndex(c[0] >> sh[0], c[1] >> sh[1], c[2] >> sh[2]);
+#pragma omp parallel for num_threads(threads) schedule(static) if (ncb * cbv > 16384)
+    for (int64_t b = 0; b < ncb; ++b) {
+      int o[3];
+      const uint32_t first = static_cast<uint32_t>(b) * cbv;
+      if (innerData) tree.inner_[l + 1].entryCoords(first, o);
+      else tree.leaves_.entryCoords(first, o);
+      for (uint32_t q = 0; q < cbv; ++q) {
+        const bool exists = innerData ? innerData[first + q] != 0 : leafData[first + q].begin != MT_NULL;
+        if (!exists) continue;
+        const int c[3] = {o[0] | int(q & mx), o[1] | int((q >> lbx) & my), o[2] | int(q >> (lbx + lby))};
+        const uint32_t s = parent.storageIndex(c[0] >> sh[0], c[1] >> sh[1], c[2] >> sh[2]);
 #pragma omp atomic write
-      pdata[s] = 1;
+        pdata[s] = 1;
+      }
     }
   }
   tree.empty_ = false;

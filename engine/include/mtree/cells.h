@@ -73,15 +73,33 @@ class CellSet {
   /// bounds (0 = OpenMP's default).
   CellSet(std::vector<double> points, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
           std::vector<uint8_t> types, int threads = 0)
-      : pts_(std::move(points)), off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
-    if (pts_.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
-    if (pts_.size() / 3 >= 0xffffffffu) throw std::length_error("CellSet: more than 2^32 - 1 points");
-    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 || off_.back() != conn_.size())
-      throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
-    validate();
-    dropUniformOffsets();
-    keepFloatPointsIfExact();
-    computeBounds(threads);
+      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
+    if (points.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
+    pts_.d = std::move(points);
+    pts_.n = pts_.d.size() / 3;
+    pts_.rebind();
+    init(threads);
+  }
+  /// The same over the caller's points, not copied: 3 floats (or doubles) per point, which must
+  /// stay alive and unchanged while the set is used (the locator keeps a reference to the data
+  /// set's point array). bytes() does not count them. Float points are read as floats; double
+  /// points as doubles (not narrowed, as there is no copy to save).
+  CellSet(const float* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
+          std::vector<uint8_t> types, int threads = 0)
+      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
+    pts_.fp = points;
+    pts_.n = numPoints;
+    pts_.view = true;
+    floatPoints_ = true;
+    init(threads);
+  }
+  CellSet(const double* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
+          std::vector<uint8_t> types, int threads = 0)
+      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
+    pts_.dp = points;
+    pts_.n = numPoints;
+    pts_.view = true;
+    init(threads);
   }
   /// The same from 64-bit offsets and connectivity (converted; see above for the limits).
   CellSet(std::vector<double> points, const std::vector<int64_t>& offsets, const std::vector<int64_t>& connectivity,
@@ -96,11 +114,11 @@ class CellSet {
   }
   const uint32_t* cellPointIds(size_t c) const { return conn_.data() + firstPoint(c); }
   Vec3 cellPoint(size_t c, int64_t k) const { return point(conn_[firstPoint(c) + k]); }
-  size_t numPoints() const { return floatPoints_ ? ptsF_.size() / 3 : pts_.size() / 3; }
+  size_t numPoints() const { return pts_.n; }
   /// Point i, as given (points that are all exact floats are kept as floats, read back exactly).
   Vec3 point(size_t i) const {
-    if (floatPoints_) return Vec3(ptsF_[3 * i], ptsF_[3 * i + 1], ptsF_[3 * i + 2]);
-    return Vec3(&pts_[3 * i]);
+    if (floatPoints_) return Vec3(pts_.fp[3 * i], pts_.fp[3 * i + 1], pts_.fp[3 * i + 2]);
+    return Vec3(&pts_.dp[3 * i]);
   }
   /// Whether the points are kept as floats (every coordinate given was exactly a float).
   bool floatPoints() const { return floatPoints_; }
@@ -120,8 +138,8 @@ class CellSet {
     const uint32_t* id = cellPointIds(c);
     const int64_t n = std::min<int64_t>(numCellPoints(c), kMaxLocalPoints);
     for (int64_t k = 0; k < n; ++k) {
-      if (floatPoints_) __builtin_prefetch(&ptsF_[3 * size_t(id[k])]);
-      else __builtin_prefetch(&pts_[3 * size_t(id[k])]);
+      if (floatPoints_) __builtin_prefetch(&pts_.fp[3 * size_t(id[k])]);
+      else __builtin_prefetch(&pts_.dp[3 * size_t(id[k])]);
     }
   }
   /// Cached (conservative) bounds as a Box: what the tree build uses.
@@ -182,35 +200,53 @@ class CellSet {
     /// cell's bounding-box range, so they never separate (skipping stays conservative).
     struct Tester {
       static constexpr int kMaxAxes = 12 + 3 * 12;
-      Vec3 axis[kMaxAxes];
+      // Structure of arrays, left uninitialized: only the first n entries are ever written or
+      // read (a tetrahedron's tester uses 4 of the 48 slots; zeroing all of them cost a quarter
+      // of the tester's time). The arithmetic per axis is dot(c, axis), as before.
+      double ax[kMaxAxes], ay[kMaxAxes], az[kMaxAxes];
       double lo[kMaxAxes], hi[kMaxAxes], r[kMaxAxes];
       int n = 0;
       bool overlaps(Vec3 c) const {
         for (int k = 0; k < n; ++k) {
-          const double pc = dot(c, axis[k]);
+          const double pc = c.x * ax[k] + c.y * ay[k] + c.z * az[k];
           if (lo[k] - pc > r[k] || hi[k] - pc < -r[k]) return false;
         }
         return true;
       }
     };
     Tester tester(Vec3 half) const {
-      Tester t;
       Vec3 p[kMaxLocalPoints];
-      int n = 0;
-      const CellTopology* topo = nullptr;
-      if (!fetch(p, n, topo)) return t;  // no axes: every candidate of the bounding-box range overlaps
-      auto add = [&](Vec3 ax) {
-        if ((ax.x == 0 && ax.y == 0 && ax.z == 0) || t.n == Tester::kMaxAxes) return;
+      return tester(half, p, vertices(p));
+    }
+    /// The cell's points (at most kMaxLocalPoints), for the types with a table; 0 for the others
+    /// (their bounding box decides) and for a malformed point count.
+    int vertices(Vec3* p) const {
+      const CellTopology* topo = cellTopology(set->type(cell));
+      const int64_t np = set->numCellPoints(cell);
+      if (!topo || np != topo->numPoints) return 0;
+      for (int k = 0; k < topo->numPoints; ++k) p[k] = set->cellPoint(cell, k);
+      return topo->numPoints;
+    }
+    /// The tester from the points vertices() gave (n of them; 0: no axes, every candidate of
+    /// the bounding-box range overlaps).
+    Tester tester(Vec3 half, const Vec3* p, int n) const {
+      Tester t;
+      if (n == 0) return t;
+      const CellTopology* topo = cellTopology(set->type(cell));
+      auto add = [&](Vec3 a) {
+        if ((a.x == 0 && a.y == 0 && a.z == 0) || t.n == Tester::kMaxAxes) return;
         double mn = std::numeric_limits<double>::infinity(), mx = -mn;
         for (int i = 0; i < n; ++i) {
-          const double q = dot(p[i], ax);
+          const double q = dot(p[i], a);
           mn = std::min(mn, q);
           mx = std::max(mx, q);
         }
-        t.axis[t.n] = ax;
+        t.ax[t.n] = a.x;
+        t.ay[t.n] = a.y;
+        t.az[t.n] = a.z;
         t.lo[t.n] = mn;
         t.hi[t.n] = mx;
-        t.r[t.n] = half.x * std::fabs(ax.x) + half.y * std::fabs(ax.y) + half.z * std::fabs(ax.z);
+        t.r[t.n] = half.x * std::fabs(a.x) + half.y * std::fabs(a.y) + half.z * std::fabs(a.z);
         ++t.n;
       };
       for (int f = 0; f < topo->numFaces; ++f) {
@@ -255,13 +291,15 @@ class CellSet {
     return u >= lo && u <= hi && v >= lo && v <= hi && w >= lo && w <= hi && s >= lo && s <= hi;
   }
 
-  /// Bytes held: points (12 bytes each when they are all exact floats, else 24), offsets (none
-  /// when every cell has the same number of points: the offsets are then c x that number),
-  /// connectivity, types and cached bounds.
+  /// Bytes held: points (12 bytes each when they are all exact floats, else 24; none when they
+  /// are the caller's), offsets (none when every cell has the same number of points: the
+  /// offsets are then c x that number), connectivity, types and cached bounds.
   size_t bytes() const {
-    return pts_.size() * sizeof(double) + ptsF_.size() * sizeof(float) + (off_.size() + conn_.size()) * sizeof(uint32_t) +
-           types_.size() + box_.size() * sizeof(float);
+    return pts_.d.size() * sizeof(double) + pts_.f.size() * sizeof(float) +
+           (off_.size() + conn_.size()) * sizeof(uint32_t) + types_.size() + box_.size() * sizeof(float);
   }
+  /// Whether the points are the caller's (the view constructors), not a copy.
+  bool pointsViewed() const { return pts_.view; }
 
  private:
   static std::vector<uint32_t> narrow(const std::vector<int64_t>& v, const char* what);
@@ -270,9 +308,49 @@ class CellSet {
   void keepFloatPointsIfExact();
   size_t firstPoint(size_t c) const { return uniform_ >= 0 ? size_t(uniform_) * c : size_t(off_[c]); }
   void computeBounds(int threads);
+  /// The constructors' common checks and set-up, once the points are in place.
+  void init(int threads) {
+    if (pts_.n >= 0xffffffffu) throw std::length_error("CellSet: more than 2^32 - 1 points");
+    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 || off_.back() != conn_.size())
+      throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
+    validate();
+    dropUniformOffsets();
+    keepFloatPointsIfExact();
+    computeBounds(threads);
+  }
 
-  std::vector<double> pts_;
-  std::vector<float> ptsF_;  // instead of pts_ when every coordinate is exactly a float
+  /// The points: owned doubles (d), owned floats (f, when every given double was exactly a
+  /// float), or the caller's (view); point() reads through dp or fp, which follow the owned
+  /// arrays through copies and moves.
+  struct Points {
+    std::vector<double> d;
+    std::vector<float> f;
+    const double* dp = nullptr;
+    const float* fp = nullptr;
+    size_t n = 0;
+    bool view = false;
+    Points() = default;
+    Points(const Points& o) : d(o.d), f(o.f), dp(o.dp), fp(o.fp), n(o.n), view(o.view) { rebind(); }
+    Points& operator=(const Points& o) {
+      d = o.d;
+      f = o.f;
+      dp = o.dp;
+      fp = o.fp;
+      n = o.n;
+      view = o.view;
+      rebind();
+      return *this;
+    }
+    // A moved vector keeps its buffer, so the pointers stay right.
+    Points(Points&&) noexcept = default;
+    Points& operator=(Points&&) noexcept = default;
+    void rebind() {
+      if (view) return;
+      dp = d.empty() ? nullptr : d.data();
+      fp = f.empty() ? nullptr : f.data();
+    }
+  };
+  Points pts_;
   bool floatPoints_ = false;
   std::vector<uint32_t> off_, conn_;
   int64_t uniform_ = -1;  // >= 0: every cell has this many points and off_ is released
@@ -342,13 +420,21 @@ struct LeafBoxQuantizer {
   uint8_t bytes[3][kSlots][2];
   int used[3] = {0, 0, 0};
 
-  void operator()(uint8_t* q, const CellSet::Local& c, const Box& leaf) {
-    if (c.cell != cell || c.set != set) {
-      set = c.set;
-      cell = c.cell;
-      pad = detail::leafBoxPad(c.box);
-      used[0] = used[1] = used[2] = 0;
+  /// One axis's two bytes (q[0], q[1]) for the leaf interval [lo, hi] on axis a: the builder's
+  /// counting scatter calls this once per cell and candidate leaf row/column/slab and copies the
+  /// three axes' bytes to each reference (see detail::HasAxisData); the same bytes as operator().
+  void axis(uint8_t* q, const CellSet::Local& c, int a, double lo, double hi) {
+    startCell(c);
+    const double w = hi - lo;
+    if (w != width[a]) {
+      width[a] = w;
+      scale[a] = 255.0 / w;
     }
+    detail::quantizeLeafAxis(c.box.lo[a], c.box.hi[a], pad, lo, scale[a], q);
+  }
+
+  void operator()(uint8_t* q, const CellSet::Local& c, const Box& leaf) {
+    startCell(c);
     for (int a = 0; a < 3; ++a) {
       const double lo = leaf.lo[a], hi = leaf.hi[a];
       int s = 0;
@@ -374,6 +460,16 @@ struct LeafBoxQuantizer {
       }
       q[2 * a] = bytes[a][s][0];
       q[2 * a + 1] = bytes[a][s][1];
+    }
+  }
+
+ private:
+  void startCell(const CellSet::Local& c) {
+    if (c.cell != cell || c.set != set) {
+      set = c.set;
+      cell = c.cell;
+      pad = detail::leafBoxPad(c.box);
+      used[0] = used[1] = used[2] = 0;
     }
   }
 };
