@@ -2,6 +2,7 @@
 """Charts of the benchmark JSON files, written as PNG into docs/images/.
 
     .venv/bin/python bench/plot.py [--build out/bench_build.json] [--height out/bench_height.json]
+                                   [--locators RUN.json [RUN2.json ...]]
 
 build_phases.png: per scene, the median build time of the matrix octree and kd-tree split into
 the §5.1 phases (the paper's Figure 4), next to VTK's locators built in the same run.
@@ -16,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 
 import matplotlib
 import matplotlib.ticker
@@ -91,8 +93,12 @@ def plot_height(data, path):
     plt.close(fig)
 
 
-def plot_locators(rows, path):
-    ours = [r for r in rows if r["locator"] == "matrix-octree" and r.get("backend", "cpu") == "cpu"]
+def plot_locators(runs, path):
+    """runs: one row list per bench/locators.py run; with several, each bar is the median over
+    the runs of that grid's ratio (each ratio taken within its own run)."""
+    per_run = [[r for r in rows if r["locator"] == "matrix-octree" and r.get("backend", "cpu") == "cpu"]
+               for rows in runs]
+    ours = per_run[0]
     grids = [r["grid"].rsplit(".", 1)[0] for r in ours]
     panels = [  # (column, title, target, True if higher is better)
         ("findcell_speedup_vs_static", "FindCell speed-up (1 thread)", 5.0, True),
@@ -102,7 +108,8 @@ def plot_locators(rows, path):
     ]
     fig, axes = plt.subplots(1, 4, figsize=(15, 4.6), sharey=False)
     for ax, (col, title, target, higher) in zip(axes, panels):
-        vals = [r[col] for r in ours]
+        vals = [statistics.median(next(x for x in rows if x["grid"] == r["grid"])[col] for rows in per_run)
+                for r in ours]
         ok = [(v >= target) if higher else (v <= target) for v in vals]
         ax.barh(range(len(vals)), vals, color=["#2a9d8f" if o else "#e76f51" for o in ok])
         ax.axvline(target, color="k", ls="--", lw=1)
@@ -116,7 +123,8 @@ def plot_locators(rows, path):
         ax.set_title(f"{title}\ntarget {'>=' if higher else '<='} {target:g}x (dashed)", fontsize=9)
         for i, v in enumerate(vals):
             ax.text(v, i, f" {v:.2f}", va="center", fontsize=7)
-    fig.suptitle("matrix octree / vtkStaticCellLocator, same run (green: target met)", fontsize=10)
+    what = "same run" if len(runs) == 1 else f"median of {len(runs)} runs, each ratio within its run"
+    fig.suptitle(f"matrix octree / vtkStaticCellLocator, {what} (green: target met)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -126,7 +134,8 @@ def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--build", default=os.path.join(ROOT, "out", "bench_build.json"))
     p.add_argument("--height", default=os.path.join(ROOT, "out", "bench_height.json"))
-    p.add_argument("--locators", default=os.path.join(ROOT, "out", "bench_locators_all.json"))
+    p.add_argument("--locators", nargs="+", default=[os.path.join(ROOT, "out", "bench_locators_all.json")],
+                   help="bench/locators.py JSON; several runs: the chart shows each ratio's median")
     p.add_argument("--out", default=os.path.join(ROOT, "docs", "images"))
     a = p.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -138,10 +147,14 @@ def main() -> int:
         with open(a.height) as f:
             plot_height(json.load(f), os.path.join(a.out, "height_sweep.png"))
         print("wrote", os.path.join(a.out, "height_sweep.png"))
-    if os.path.exists(a.locators):
-        with open(a.locators) as f:
-            data = json.load(f)
-        plot_locators(data if isinstance(data, list) else data["rows"], os.path.join(a.out, "locator_ratios.png"))
+    runs = []
+    for path in a.locators:
+        if os.path.exists(path):
+            with open(path) as f:
+                data = json.load(f)
+            runs.append(data if isinstance(data, list) else data["rows"])
+    if runs:
+        plot_locators(runs, os.path.join(a.out, "locator_ratios.png"))
         print("wrote", os.path.join(a.out, "locator_ratios.png"))
     return 0
 
