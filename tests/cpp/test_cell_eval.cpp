@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -173,6 +174,8 @@ std::string describe(const Tally& t) {
 struct GridCase {
   const char* path;
 };
+// So that ctest's log names the grid instead of the parameter's bytes.
+void PrintTo(const GridCase& c, std::ostream* os) { *os << c.path; }
 
 class CellEvalGrid : public ::testing::TestWithParam<GridCase> {};
 
