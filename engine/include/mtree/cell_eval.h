@@ -87,6 +87,12 @@ inline PointInCell conjoin(PointInCell a, PointInCell b) {
   return PointInCell::kInside;
 }
 
+/// The three parametric coordinates in [lo, hi], the test every type here makes (the wedge adds
+/// r + s): their verdicts conjoined.
+inline PointInCell inCube(const double pc[3], double lo, double hi, double m) {
+  return conjoin(conjoin(classify(pc[0], lo, hi, m), classify(pc[1], lo, hi, m)), classify(pc[2], lo, hi, m));
+}
+
 /// Is |step| < threshold decided by more than the margin? Sets `below`; false: too close to call.
 /// The threshold's own margin is relative (kDecisionMargin); the round-off bound is
 /// roundoff's second term, kml2 / adet, compared multiplied out (no division per step): kml2 =
@@ -176,10 +182,7 @@ struct Hexahedron {
     d[22] = pc[0] * pc[1];
     d[23] = rm * pc[1];
   }
-  static PointInCell accept(const double pc[3], double m) {
-    return conjoin(conjoin(classify(pc[0], kLower, kUpper, m), classify(pc[1], kLower, kUpper, m)),
-                   classify(pc[2], kLower, kUpper, m));
-  }
+  static PointInCell accept(const double pc[3], double m) { return inCube(pc, kLower, kUpper, m); }
 };
 
 struct Wedge {
@@ -216,10 +219,8 @@ struct Wedge {
     d[17] = pc[1];
   }
   static PointInCell accept(const double pc[3], double m) {
-    PointInCell v = conjoin(classify(pc[0], -0.001, 1.001, m), classify(pc[1], -0.001, 1.001, m));
-    v = conjoin(v, classify(pc[2], -0.001, 1.001, m));
     // r + s <= 1.001: VTK adds, then compares; -inf as the lower limit never decides.
-    return conjoin(v, classify(pc[0] + pc[1], -HUGE_VAL, 1.001, 2 * m));
+    return conjoin(inCube(pc, -0.001, 1.001, m), classify(pc[0] + pc[1], -HUGE_VAL, 1.001, 2 * m));
   }
 };
 
@@ -254,10 +255,7 @@ struct Pyramid {
     d[13] = -rm * pc[1];
     d[14] = 1.0;
   }
-  static PointInCell accept(const double pc[3], double m) {
-    return conjoin(conjoin(classify(pc[0], -0.001, 1.001, m), classify(pc[1], -0.001, 1.001, m)),
-                   classify(pc[2], -0.001, 1.001, m));
-  }
+  static PointInCell accept(const double pc[3], double m) { return inCube(pc, -0.001, 1.001, m); }
 };
 
 /// The Newton iteration's columns as VTK sums them: f = sum_i p_i w_i, r/s/t = sum_i p_i d_i
@@ -472,16 +470,13 @@ inline PointInCell evaluateVoxel(const double* pts, const double x[3], double pc
   pc[0] = (x[0] - pts[0]) / (pts[3] - pts[0]);
   pc[1] = (x[1] - pts[1]) / (pts[7] - pts[1]);
   pc[2] = (x[2] - pts[2]) / (pts[14] - pts[2]);
-  using cell_eval::classify;
-  using cell_eval::conjoin;
   // Round-off: a few ulp of the magnitude over the voxel's narrowest width (a zero or NaN width
   // gives an infinite or NaN margin: VTK decides).
   const double width = std::min({std::fabs(pts[3] - pts[0]), std::fabs(pts[7] - pts[1]), std::fabs(pts[14] - pts[2])});
   const double m = cell_eval::kDecisionMargin +
                    8 * std::numeric_limits<double>::epsilon() * cell_eval::magnitude(pts, 8, x) / width;
   if (!(m < 1e-3)) return PointInCell::kAskVtk;
-  const PointInCell v =
-      conjoin(conjoin(classify(pc[0], 0.0, 1.0, m), classify(pc[1], 0.0, 1.0, m)), classify(pc[2], 0.0, 1.0, m));
+  const PointInCell v = cell_eval::inCube(pc, 0.0, 1.0, m);
   if (v == PointInCell::kInside) {
     pcoords[0] = pc[0];
     pcoords[1] = pc[1];
