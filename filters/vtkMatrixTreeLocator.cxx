@@ -118,6 +118,19 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
       }
 }
 
+// Cell `id`'s points from the engine's copy into pts (3 doubles each); at most n points.
+inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, double* pts)
+{
+  const uint32_t* pid = cells.cellPointIds(id);
+  for (int64_t k = 0; k < n; ++k)
+  {
+    const mtree::Vec3 p = cells.point(pid[k]);
+    pts[3 * k] = p.x;
+    pts[3 * k + 1] = p.y;
+    pts[3 * k + 2] = p.z;
+  }
+}
+
 // Cell `id` into `cell` from the engine's copy: the same type, point ids and coordinates as
 // vtkDataSet::GetCell (the copy holds the dataset's values exactly: doubles, or floats where every
 // coordinate is one), without touching VTK's own connectivity and point arrays — for a random
@@ -172,27 +185,10 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
   if (pts)
   {
     std::copy(pts, pts + 3 * n, out);
-    return;
   }
-  for (vtkIdType k = 0; k < n; ++k)
+  else
   {
-    const mtree::Vec3 p = in.Cells.cellPoint(static_cast<size_t>(id), k);
-    out[3 * k] = p.x;
-    out[3 * k + 1] = p.y;
-    out[3 * k + 2] = p.z;
-  }
-}
-
-// Cell `id`'s points from the engine's copy into pts (3 doubles each); at most n points.
-inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, double* pts)
-{
-  const uint32_t* pid = cells.cellPointIds(id);
-  for (int64_t k = 0; k < n; ++k)
-  {
-    const mtree::Vec3 p = cells.point(pid[k]);
-    pts[3 * k] = p.x;
-    pts[3 * k + 1] = p.y;
-    pts[3 * k + 2] = p.z;
+    GatherPoints(in.Cells, static_cast<size_t>(id), n, out);
   }
 }
 
