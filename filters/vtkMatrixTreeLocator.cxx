@@ -812,17 +812,18 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   try
   {
     in.PointArray = nullptr;
+    auto viewPoints = [&](auto* array) {
+      in.Cells = mtree::CellSet(array->GetPointer(0), static_cast<size_t>(np), std::move(offsets), std::move(conn),
+        std::move(types), buildThreads);
+      in.PointArray = array;
+    };
     if (viewFloats)
     {
-      in.Cells = mtree::CellSet(viewFloats->GetPointer(0), static_cast<size_t>(np), std::move(offsets),
-        std::move(conn), std::move(types), buildThreads);
-      in.PointArray = viewFloats;
+      viewPoints(viewFloats);
     }
     else if (viewDoubles)
     {
-      in.Cells = mtree::CellSet(viewDoubles->GetPointer(0), static_cast<size_t>(np), std::move(offsets),
-        std::move(conn), std::move(types), buildThreads);
-      in.PointArray = viewDoubles;
+      viewPoints(viewDoubles);
     }
     else
     {

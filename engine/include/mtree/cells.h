@@ -20,6 +20,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "mtree/geometry.h"
@@ -84,19 +85,16 @@ class CellSet {
   /// stay alive and unchanged while the set is used (the locator keeps a reference to the data
   /// set's point array). bytes() does not count them. Float points are read as floats; double
   /// points as doubles (not narrowed, as there is no copy to save).
-  CellSet(const float* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
+  template <class T, class = std::enable_if_t<std::is_same_v<T, float> || std::is_same_v<T, double>>>
+  CellSet(const T* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
           std::vector<uint8_t> types, int threads = 0)
       : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
-    pts_.fp = points;
-    pts_.n = numPoints;
-    pts_.view = true;
-    floatPoints_ = true;
-    init(threads);
-  }
-  CellSet(const double* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
-          std::vector<uint8_t> types, int threads = 0)
-      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
-    pts_.dp = points;
+    if constexpr (std::is_same_v<T, float>) {
+      pts_.fp = points;
+      floatPoints_ = true;
+    } else {
+      pts_.dp = points;
+    }
     pts_.n = numPoints;
     pts_.view = true;
     init(threads);
