@@ -172,6 +172,7 @@ int main(int argc, char* argv[])
   {
     double buildMs, pps1, ppsAll, raysPerS, raysPerCpuS = 0, pps1Cpu = 0;
     long long bytes;
+    long long height = -1, refs = -1, leaves = -1; // matrix trees only
     std::vector<vtkIdType> found;
     double batchPps = -1, firstCallMs = -1;
     std::string device, phases, firstPhases;
@@ -205,7 +206,12 @@ int main(int argc, char* argv[])
     // Memory: the matrix tree reports its bytes; VTK 9.1's locators do not (-1).
     res.bytes = -1;
     if (auto* m = vtkMatrixTreeLocator::SafeDownCast(loc))
+    {
       res.bytes = m->GetMemorySize();
+      res.height = m->GetTreeHeight();
+      res.refs = m->GetNumberOfReferences();
+      res.leaves = m->GetNumberOfLeaves();
+    }
     else if (auto* st = vtkStaticCellLocator::SafeDownCast(loc))
     {
       // VTK 9.1 reports no size: estimated from its layout (vtkStaticCellLocator.cxx): cell
@@ -353,14 +359,14 @@ int main(int argc, char* argv[])
         differs += r.found[i] != results[cpuIndex].found[i];
     }
     std::printf("{\"locator\": \"%s\", \"backend\": \"%s\", \"device\": \"%s\", \"cells\": %lld, "
-                "\"build_ms\": %.3f, \"bytes\": %lld, "
+                "\"build_ms\": %.3f, \"bytes\": %lld, \"height\": %lld, \"refs\": %lld, \"leaves\": %lld, "
                 "\"findcell_pts_per_s_1thread\": %.1f, \"findcell_pts_per_cpu_s_1thread\": %.1f, "
                 "\"findcell_pts_per_s_all\": %.1f, \"threads\": %d, "
                 "\"batch_pts_per_s\": %.1f, \"first_call_ms\": %.3f, \"first_call_phases\": \"%s\", \"phases\": \"%s\", "
                 "\"differs_from_cpu\": %lld, \"failed\": %s, "
                 "\"rays_per_s\": %.1f, \"rays_per_cpu_s\": %.1f, \"points\": %d, \"found\": %lld, \"disagreements\": %lld}\n",
       locs[li].name, r.opencl ? "opencl" : "cpu", r.device.c_str(), static_cast<long long>(ds->GetNumberOfCells()),
-      r.buildMs, r.bytes, r.pps1, r.pps1Cpu, r.ppsAll, threads, r.batchPps, r.firstCallMs, r.firstPhases.c_str(), r.phases.c_str(), differs,
+      r.buildMs, r.bytes, r.height, r.refs, r.leaves, r.pps1, r.pps1Cpu, r.ppsAll, threads, r.batchPps, r.firstCallMs, r.firstPhases.c_str(), r.phases.c_str(), differs,
       r.failed ? "true" : "false", r.raysPerS, r.raysPerCpuS, nPts, found, dis);
   }
   return 0;
