@@ -1,6 +1,6 @@
 // The builder's two ways of grouping references by leaf (BuildOptions::sort):
 //   trees    BuildSort::Counting gives the Radix tree array for array (leaf ranges, primitive
-//            lists, existence at every level) at 1 and 2 threads, octree and regular kd-tree,
+//            lists, existence at every level) at 1, 2 and 3 threads, octree and regular kd-tree,
 //            exact and bounding-box overlap, on real surface meshes and a CFD grid, with the
 //            automatic height and with a low one (long leaves: the sort's std::sort path);
 //   boxes    the per-reference data of build<6> with LeafBoxQuantizer (the locator's quantized
@@ -108,8 +108,9 @@ void expectSortsAgree(const Prims& prims, TreeKind kind, OverlapMode overlap, in
   MatrixTreeBuilder<Prims>::build(prims, opts(kind, overlap, BuildSort::Radix, 1, height), ref, &refStats);
   ASSERT_FALSE(ref.empty());
   for (BuildSort sort : {BuildSort::Counting, BuildSort::Radix})
-    for (int threads : {1, 2}) {
-      if (sort == BuildSort::Radix && threads == 1) continue;
+    for (int threads : {1, 2, 3}) {
+      // Two threads fill the counting sort's leaves from both ends, three take shared cursors.
+      if (sort == BuildSort::Radix && threads != 2) continue;
       const BuildOptions o = opts(kind, overlap, sort, threads, height);
       MatrixTree t;
       mtree::BuildStats st;
@@ -161,7 +162,7 @@ TEST(BuildSort, LongLeavesAtALowHeight) {
   expectSortsAgree(cells, TreeKind::RegularKd, OverlapMode::Exact, 4, "pipe_flow_tets");
 }
 
-/// build<6> with LeafBoxQuantizer against the old gather, for both sorts and 1 and 2 threads,
+/// build<6> with LeafBoxQuantizer against the old gather, for both sorts and 1 to 3 threads,
 /// and the tree the same as a plain build's.
 void expectLeafBoxesAsGathered(const CellSet& cells, TreeKind kind, OverlapMode overlap, int height,
                                const std::string& what) {
@@ -170,7 +171,7 @@ void expectLeafBoxesAsGathered(const CellSet& cells, TreeKind kind, OverlapMode 
   const std::vector<uint8_t> expected = gatherLeafBoxes(plain, cells);
   ASSERT_EQ(expected.size(), 6 * plain.primitiveIndices().size());
   for (BuildSort sort : {BuildSort::Radix, BuildSort::Counting})
-    for (int threads : {1, 2}) {
+    for (int threads : {1, 2, 3}) {
       const BuildOptions o = opts(kind, overlap, sort, threads, height);
       MatrixTree t;
       std::vector<uint8_t> boxes = {1, 2, 3};  // stale content is replaced

@@ -15,18 +15,20 @@
 //               with several threads on a large leaf level, a pass with atomic increments
 //   leaf scan   exclusive scan over the leaf storage; leaf ranges from it
 //   scatter     each reference's primitive id (and its data) at its leaf's next slot
-//   leaf order  with several threads only: each leaf's ids sorted ascending
+//   leaf order  with more than two threads only: each leaf's ids sorted ascending
 // and in both
 //   propagate   existence up to the root, level by level (step 9)
 // Pairs and scatter repeat no overlap test that count+mark made: its verdicts for
 // a primitive's first 64 candidate leaves are kept as a bit mask.
 // The result depends only on the input, never on the thread count or the sort: every parallel
 // step writes to positions fixed by a scan, the radix sort is stable and the counting sort
-// restores ascending ids per leaf, so both give the same leaf ranges and primitive order.
+// writes (one or two threads) or restores (more) ascending ids per leaf, so both give the same
+// leaf ranges and primitive order.
 #pragma once
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -145,6 +147,25 @@ template <class L>
 struct HasVertices<L, std::void_t<decltype(std::declval<const L&>().vertices(std::declval<Vec3*>())),
                                   decltype(std::declval<const L&>().tester(Vec3(), std::declval<const Vec3*>(), 0))>>
     : std::true_type {};
+
+/// Two threads over [0, n) from both ends, inside a parallel region: thread 0 takes chunks of
+/// `chunk` primitives from the front and runs body(i) ascending over each, thread 1 takes them
+/// from the back and runs body(i) descending, until the chunks meet (`left` holds the number of
+/// chunks, ceil(n / chunk), on entry). Each thread sees one contiguous run of primitives, and
+/// a team of one takes every chunk from the front.
+template <class F>
+void fromBothEnds(int64_t n, int64_t chunk, std::atomic<int64_t>& left, F&& body) {
+  const int64_t chunks = (n + chunk - 1) / chunk;
+  const bool back = omp_get_thread_num() == 1;
+  for (int64_t k = 0; left.fetch_sub(1, std::memory_order_relaxed) > 0; ++k) {
+    const int64_t b = (back ? chunks - 1 - k : k) * chunk, e = std::min(n, b + chunk);
+    if (back) {
+      for (int64_t i = e - 1; i >= b; --i) body(i);
+    } else {
+      for (int64_t i = b; i < e; ++i) body(i);
+    }
+  }
+}
 
 struct PhaseClock {
   using clock = std::chrono::steady_clock;
@@ -413,8 +434,10 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       t.leafCounts->clear();
     }
   }
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
-  for (int64_t i = 0; i < n; ++i) {
+  // Two threads split the primitives from both ends (see the scatter); then each thread counts
+  // the blocks of its own contiguous run instead of most of them.
+  const bool bothEnds = threads == 2;
+  auto countMark = [&](int64_t i) {
     const auto prim = prims.local(i);
     ThreadCounts* tc = countHere ? &perThread[static_cast<size_t>(omp_get_thread_num())] : nullptr;
     int lo[3], hi[3];
@@ -494,6 +517,14 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     }
     counts[i] = c;
     if (exact) masks[i] = mask;
+  };
+  if (bothEnds) {
+    std::atomic<int64_t> left{(n + 511) / 512};
+#pragma omp parallel num_threads(2)
+    detail::fromBothEnds(n, 512, left, countMark);
+  } else {
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
+    for (int64_t i = 0; i < n; ++i) countMark(i);
   }
   clock.lap("count+mark");
 
@@ -608,10 +639,13 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   } else {
     // ---- counting sort over the dense leaf storage --------------------------------------------
     // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): the
-    // references per leaf (counted by count+mark, or by a pass here), scan, scatter. With several threads the
-    // cursors are shared (atomic) and each leaf's ids are sorted afterwards; with one thread
-    // every update is a plain one and the primitives arrive in ascending order.
-    const bool shared = threads > 1;
+    // references per leaf (counted by count+mark, or by a pass here), scan, scatter. With one
+    // thread every update is a plain one and the primitives arrive in ascending order. With two,
+    // thread 0 fills each leaf from its start with ascending ids and thread 1 from its end with
+    // descending ones (it walks its run backwards): plain stores that meet where the leaf is
+    // full, in ascending order again. With more, the cursors are shared (atomic) and each leaf's
+    // ids are sorted afterwards.
+    const bool shared = threads > 2;
     const size_t L = tree.leaves_.data().size();
     const int64_t nl = static_cast<int64_t>(L);
     std::vector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
@@ -666,6 +700,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
         if (perLeaf[e] == 0) continue;
         ++leafCount;
         data[e] = MtLeafRange{cursor[e], cursor[e] + perLeaf[e]};
+        if (bothEnds) perLeaf[e] = data[e].end;  // thread 1's cursor: the slot above its next one
       }
       if (stats) stats->leaves = leafCount;
     }
@@ -684,21 +719,25 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     constexpr size_t axisBytes = Bytes / 3;
     // Per-axis parts of a cell's candidate range, kept for ranges up to this many leaves per axis.
     constexpr int kAxisTable = 32;
+    std::atomic<int64_t> left{(n + 511) / 512};
 #pragma omp parallel num_threads(threads)
     {
       auto f = fn;  // one copy per thread
       uint8_t table[3][kAxisTable][byAxis ? axisBytes : 1];
-#pragma omp for schedule(dynamic, 512)
-      for (int64_t i = 0; i < n; ++i) {
+      const bool fromEnd = bothEnds && omp_get_thread_num() == 1;
+      auto scatterOne = [&](int64_t i) {
         const auto prim = prims.local(i);
         auto takeSlot = [&](int x, int y, int z) {
-          uint32_t& c = cursor[leaves.storageIndex(x, y, z)];
+          const uint32_t e = leaves.storageIndex(x, y, z);
           uint32_t slot;
           if (shared) {
+            uint32_t& c = cursor[e];
 #pragma omp atomic capture
             slot = c++;
+          } else if (fromEnd) {
+            slot = --perLeaf[e];
           } else {
-            slot = c++;
+            slot = cursor[e]++;
           }
           values[slot] = static_cast<uint32_t>(i);
           return slot;
@@ -717,18 +756,24 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
               std::memcpy(o + axisBytes, table[1][y - lo[1]], axisBytes);
               std::memcpy(o + 2 * axisBytes, table[2][z - lo[2]], axisBytes);
             });
-            continue;
+            return;
           }
         }
         forEachLeaf(i, prim, [&](int x, int y, int z) {
           const uint32_t slot = takeSlot(x, y, z);
           if constexpr (Bytes > 0) f(out + size_t(slot) * Bytes, prim, leafBox(x, y, z));
         });
+      };
+      if (bothEnds) {
+        detail::fromBothEnds(n, 512, left, scatterOne);
+      } else {
+#pragma omp for schedule(dynamic, 512)
+        for (int64_t i = 0; i < n; ++i) scatterOne(i);
       }
     }
     clock.lap("scatter");
 
-    // With several threads a leaf's slots were taken in any order: sort each leaf's ids
+    // With more than two threads a leaf's slots were taken in any order: sort each leaf's ids
     // (distinct) back to ascending, the radix sort's stable order.
     if (shared) {
       const MtLeafRange* data = tree.leaves_.data().data();
