@@ -235,12 +235,13 @@ int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, dou
       inv[a] = std::ldexp(1.0, ld[a]) / ext[a];
       hiCell[a] = (1 << ld[a]) - 1;
     }
+    // cellIndexNonNegative: cellIndex with a lower bound of 0 without a floor call per bound.
     double sum = 0;
     for (const Box& b : sample) {
       double c = 1;
       for (int a = 0; a < 3; ++a)
-        c *= cellIndex((b.hi[a] - root.lo[a]) * inv[a], 0, hiCell[a]) -
-             cellIndex((b.lo[a] - root.lo[a]) * inv[a], 0, hiCell[a]) + 1;
+        c *= cellIndexNonNegative((b.hi[a] - root.lo[a]) * inv[a], 0, hiCell[a]) -
+             cellIndexNonNegative((b.lo[a] - root.lo[a]) * inv[a], 0, hiCell[a]) + 1;
       sum += c;
     }
     return sum / static_cast<double>(sample.size());
