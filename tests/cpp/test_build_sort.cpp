@@ -143,9 +143,10 @@ TEST(BuildSort, CountingGivesTheRadixTreeOnACfdGrid) {
 }
 
 TEST(BuildSort, BothWaysOfCountingLeavesGiveTheRadixTree) {
-  // With two threads count+mark counts the references per leaf when the dense leaf level has
-  // at most 2^21 entries and a separate pass counts them beyond: lucy as cells (what the
-  // locator builds) at height 7 (2^21 leaves) and 8 (2^24) takes both, and the CFD grid as well.
+  // With three threads count+mark counts the references per leaf when the dense leaf level has
+  // at most 2^21 entries and a separate pass counts them beyond (one or two threads always count
+  // in count+mark): lucy as cells (what the locator builds) at height 7 (2^21 leaves) and 8
+  // (2^24) takes both, and the CFD grid as well.
   const CellSet cells = asCells(mtest::loadRealMesh("meshes/lucy.ply"));
   for (int height : {7, 8}) expectSortsAgree(cells, TreeKind::Octree, OverlapMode::Exact, height, "lucy cells");
   const CellSet grid = loadGrid("cfd/brick_tets.su2");

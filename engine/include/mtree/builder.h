@@ -12,7 +12,7 @@
 // or with BuildSort::Counting (the leaf storage is dense after alloc):
 //   leaf counts references per leaf storage entry, counted by count+mark (each thread in its own
 //               first-touch numbering of the blocks) and copied or added to their final places;
-//               with several threads on a large leaf level, a pass with atomic increments
+//               with more than two threads on a large leaf level, a pass with atomic increments
 //   leaf scan   exclusive scan over the leaf storage; leaf ranges from it
 //   scatter     each reference's primitive id (and its data) at its leaf's next slot
 //   leaf order  with more than two threads only: each leaf's ids sorted ascending
@@ -411,14 +411,16 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   // entry) and counts its leaves in that numbering (leafCounts), without atomics; after the
   // allocation the threads' counts of each block are copied (one thread) or added up to its
   // final place. The counts, hence the tree, are those of the separate pass.
-  // With several threads each thread touches most blocks, so it holds counts for most of the
-  // leaf storage, then added up: that pays on volume grids (pipe_flow_tets, two threads: leaf
-  // counts 7-8 -> 0.1 ms) but not on surfaces, whose leaf storage is ~10^6 entries (lucy:
-  // count+mark +7-17 ms, leaf counts only -3-6 ms); there, and past 2^21 leaves in the dense
-  // level, the separate counting pass stays.
+  // Two threads split the primitives into two contiguous runs (from both ends), so each counts
+  // about its own half of the blocks: that pays on surfaces too (turbineblade, two threads:
+  // count+mark +7 ms, leaf counts -14 ms). With more threads each thread touches most blocks,
+  // so it holds counts for most of the leaf storage, then added up: that pays on volume grids
+  // (pipe_flow_tets: leaf counts 7-8 -> 0.1 ms) but not on surfaces, whose leaf storage is
+  // ~10^6 entries (lucy: count+mark +7-17 ms, leaf counts only -3-6 ms); there, past 2^21
+  // leaves in the dense level, the separate counting pass stays.
   const bool countHere =
       opt.sort == BuildSort::Counting &&
-      (threads == 1 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
+      (threads <= 2 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
   const uint32_t blockVolume = tree.leaves_.blockVolume();
   struct ThreadCounts {
     std::vector<uint32_t> ownOrder, ownCounts;
