@@ -278,6 +278,8 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   }
 
   const int threads = resolveThreads(opt.threads);
+  // Threads for a light pass over m items (see kSerialBelow).
+  auto lightThreads = [threads](int64_t m) { return m >= kSerialBelow ? threads : 1; };
   if (stats) *stats = BuildStats{};
   detail::PhaseClock clock(stats);
   const int64_t n = static_cast<int64_t>(prims.size());
@@ -286,7 +288,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   Box root;
   {
     std::vector<Box> partial(threads);
-#pragma omp parallel num_threads(threads)
+#pragma omp parallel num_threads(lightThreads(n))
     {
       Box b;
 #pragma omp for schedule(static)
@@ -532,7 +534,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   clock.lap("count+mark");
 
   // ---- allocate blocks (steps 3-4) ------------------------------------------------------------
-  tree.leaves_.allocateMarked(marks.data(), threads);
+  tree.leaves_.allocateMarked(marks.data(), lightThreads(int64_t(marks.size())));
   clock.lap("alloc");
 
   // The overlapped leaves of primitive i (local data `prim`), in the order of the count pass,
@@ -664,7 +666,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       } else {
         perLeaf.assign(L, 0);
       }
-#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+#pragma omp parallel for num_threads(lightThreads(nl)) schedule(static) if (threads > 1)
       for (int64_t p = 0; p < np; ++p) {
         if (ptr[p] == MT_NULL) continue;
         uint32_t* dst = perLeaf.data() + size_t(ptr[p]) * blockVolume;
@@ -692,13 +694,13 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     }
     clock.lap("leaf counts");
 
-    numPairs = exclusiveScan(perLeaf.data(), cursor.data(), L, threads);
+    numPairs = exclusiveScan(perLeaf.data(), cursor.data(), L, lightThreads(nl));
     if (numPairs >= MT_NULL)
       throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
     {
       MtLeafRange* data = tree.leaves_.data().data();
       uint64_t leafCount = 0;
-#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : leafCount)
+#pragma omp parallel for num_threads(lightThreads(nl)) schedule(static) reduction(+ : leafCount)
       for (int64_t e = 0; e < nl; ++e) {
         if (perLeaf[e] == 0) continue;
         ++leafCount;
@@ -809,7 +811,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     // A child block maps into exactly one parent block; mark it.
     std::vector<uint8_t> pmarks(parent.pointerCount(), 0);
     const int64_t ncp = static_cast<int64_t>(cptr.size());
-#pragma omp parallel for num_threads(threads) schedule(static) if (ncp > 4096)
+#pragma omp parallel for num_threads(lightThreads(ncp)) schedule(static)
     for (int64_t p = 0; p < ncp; ++p) {
       if (cptr[p] == MT_NULL) continue;
       const int bx = static_cast<int>(p % cd.ptrDims[0]);
@@ -820,7 +822,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
 #pragma omp atomic write
       pmarks[parent.pointerIndex(i, j, k)] = 1;
     }
-    parent.allocateMarked(pmarks.data(), threads);
+    parent.allocateMarked(pmarks.data(), lightThreads(int64_t(pmarks.size())));
     // Scatter existence from every existing child entry to its parent (a byte store of 1 by
     // every writer: the result does not depend on their order). Only allocated child entries
     // are read, contiguously.
@@ -834,7 +836,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     const uint32_t mx = (1u << lbx) - 1, my = (1u << lby) - 1;
     const MtLeafRange* leafData = tree.leaves_.data().data();
     const uint8_t* innerData = l + 1 == H ? nullptr : tree.inner_[l + 1].data().data();
-#pragma omp parallel for num_threads(threads) schedule(static) if (ncb * cbv > 16384)
+#pragma omp parallel for num_threads(lightThreads(ncb * cbv)) schedule(static)
     for (int64_t b = 0; b < ncb; ++b) {
       int o[3];
       const uint32_t first = static_cast<uint32_t>(b) * cbv;
@@ -852,7 +854,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   }
   tree.empty_ = false;
   clock.lap("propagate");
-  tree.buildWalkCaches(threads);
+  tree.buildWalkCaches(lightThreads(int64_t(tree.leaves_.data().size())));
   clock.lap("walk caches");
   if (stats) {
     stats->references = numPairs;

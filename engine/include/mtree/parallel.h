@@ -9,6 +9,11 @@
 
 namespace mtree {
 
+/// Passes with a few nanoseconds of work per item (bounds, scans, copies, existence marks) run
+/// on one thread below this many items (~1 ms): a parallel region's start and barrier cost
+/// microseconds on an idle machine but a scheduler time slice (4-8 ms) on a loaded one.
+constexpr int64_t kSerialBelow = int64_t{1} << 20;
+
 /// Number of OpenMP threads to use: `requested` if > 0, else OpenMP's default.
 int resolveThreads(int requested);
 
