@@ -7,7 +7,8 @@
 //            leaf boxes) equals, byte for byte, the gather over the leaves that the locator
 //            used before (ComputeLeafBoxes: floor/ceil on each reference's cached cell bounds);
 //   pieces   quantizeLeafBox against that formula on edge cases, detail::sortLeaf on long and
-//            short leaves with data, an empty primitive set, a bad sort value.
+//            short leaves with data, a two-thread build in a team of one, an empty primitive set,
+//            a bad sort value.
 #include <gtest/gtest.h>
 
 
@@ -391,6 +392,26 @@ TEST(BuildSort, SortLeafOrdersIdsAndTheirData) {
     std::sort(all.begin(), all.end());
     EXPECT_EQ(sortedIds, all) << "a permutation";
   }
+}
+
+TEST(BuildSort, TwoThreadsGivenATeamOfOne) {
+  // A two-thread build started inside a parallel region gets a team of one thread (no nested
+  // parallelism): thread 0 then takes every chunk from the front, the same tree and leaf boxes.
+  const CellSet cells = loadGrid("cfd/brick_tets.su2");
+  const BuildOptions o = opts(TreeKind::Octree, OverlapMode::Exact, BuildSort::Counting, 2);
+  MatrixTree ref, t;
+  std::vector<uint8_t> refBoxes, boxes;
+  MatrixTreeBuilder<CellSet>::build<6>(cells, o, ref, nullptr, &refBoxes, mtree::LeafBoxQuantizer());
+  const int levels = omp_get_max_active_levels();
+  omp_set_max_active_levels(1);
+#pragma omp parallel num_threads(2)
+  {
+#pragma omp single
+    MatrixTreeBuilder<CellSet>::build<6>(cells, o, t, nullptr, &boxes, mtree::LeafBoxQuantizer());
+  }
+  omp_set_max_active_levels(levels);
+  mtest::expectSameTree(ref, t, "brick_tets in a parallel region");
+  EXPECT_TRUE(boxes == refBoxes);
 }
 
 TEST(BuildSort, EmptySetAndBadValue) {
