@@ -742,12 +742,12 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
       }
       conn.resize(static_cast<size_t>(m));
       // Negative or too large values are caught by the CellSet's range check (as 2^32 - 1).
-#pragma omp parallel for num_threads(buildThreads) schedule(static) if (m > 65536)
+#pragma omp parallel for num_threads(buildThreads) schedule(static) if (m > mtree::kSerialBelow)
       for (vtkIdType k = 0; k < m; ++k)
       {
         conn[k] = (cc[k] < 0 || static_cast<long long>(cc[k]) >= np) ? 0xffffffffu : static_cast<uint32_t>(cc[k]);
       }
-#pragma omp parallel for num_threads(buildThreads) schedule(static) if (nc > 65536)
+#pragma omp parallel for num_threads(buildThreads) schedule(static) if (nc > mtree::kSerialBelow)
       for (vtkIdType c = 0; c <= nc; ++c)
       {
         offsets[c] = static_cast<uint32_t>(o[c]);

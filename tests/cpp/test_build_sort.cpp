@@ -1,13 +1,14 @@
 // The builder's two ways of grouping references by leaf (BuildOptions::sort):
 //   trees    BuildSort::Counting gives the Radix tree array for array (leaf ranges, primitive
-//            lists, existence at every level) at 1 and 2 threads, octree and regular kd-tree,
+//            lists, existence at every level) at 1, 2 and 3 threads, octree and regular kd-tree,
 //            exact and bounding-box overlap, on real surface meshes and a CFD grid, with the
 //            automatic height and with a low one (long leaves: the sort's std::sort path);
 //   boxes    the per-reference data of build<6> with LeafBoxQuantizer (the locator's quantized
 //            leaf boxes) equals, byte for byte, the gather over the leaves that the locator
 //            used before (ComputeLeafBoxes: floor/ceil on each reference's cached cell bounds);
 //   pieces   quantizeLeafBox against that formula on edge cases, detail::sortLeaf on long and
-//            short leaves with data, an empty primitive set, a bad sort value.
+//            short leaves with data, a two-thread build in a team of one, an empty primitive set,
+//            a bad sort value.
 #include <gtest/gtest.h>
 
 
@@ -108,8 +109,9 @@ void expectSortsAgree(const Prims& prims, TreeKind kind, OverlapMode overlap, in
   MatrixTreeBuilder<Prims>::build(prims, opts(kind, overlap, BuildSort::Radix, 1, height), ref, &refStats);
   ASSERT_FALSE(ref.empty());
   for (BuildSort sort : {BuildSort::Counting, BuildSort::Radix})
-    for (int threads : {1, 2}) {
-      if (sort == BuildSort::Radix && threads == 1) continue;
+    for (int threads : {1, 2, 3}) {
+      // Two threads fill the counting sort's leaves from both ends, three take shared cursors.
+      if (sort == BuildSort::Radix && threads != 2) continue;
       const BuildOptions o = opts(kind, overlap, sort, threads, height);
       MatrixTree t;
       mtree::BuildStats st;
@@ -142,9 +144,10 @@ TEST(BuildSort, CountingGivesTheRadixTreeOnACfdGrid) {
 }
 
 TEST(BuildSort, BothWaysOfCountingLeavesGiveTheRadixTree) {
-  // With two threads count+mark counts the references per leaf when the dense leaf level has
-  // at most 2^21 entries and a separate pass counts them beyond: lucy as cells (what the
-  // locator builds) at height 7 (2^21 leaves) and 8 (2^24) takes both, and the CFD grid as well.
+  // With three threads count+mark counts the references per leaf when the dense leaf level has
+  // at most 2^21 entries and a separate pass counts them beyond (one or two threads always count
+  // in count+mark): lucy as cells (what the locator builds) at height 7 (2^21 leaves) and 8
+  // (2^24) takes both, and the CFD grid as well.
   const CellSet cells = asCells(mtest::loadRealMesh("meshes/lucy.ply"));
   for (int height : {7, 8}) expectSortsAgree(cells, TreeKind::Octree, OverlapMode::Exact, height, "lucy cells");
   const CellSet grid = loadGrid("cfd/brick_tets.su2");
@@ -161,7 +164,7 @@ TEST(BuildSort, LongLeavesAtALowHeight) {
   expectSortsAgree(cells, TreeKind::RegularKd, OverlapMode::Exact, 4, "pipe_flow_tets");
 }
 
-/// build<6> with LeafBoxQuantizer against the old gather, for both sorts and 1 and 2 threads,
+/// build<6> with LeafBoxQuantizer against the old gather, for both sorts and 1 to 3 threads,
 /// and the tree the same as a plain build's.
 void expectLeafBoxesAsGathered(const CellSet& cells, TreeKind kind, OverlapMode overlap, int height,
                                const std::string& what) {
@@ -170,7 +173,7 @@ void expectLeafBoxesAsGathered(const CellSet& cells, TreeKind kind, OverlapMode 
   const std::vector<uint8_t> expected = gatherLeafBoxes(plain, cells);
   ASSERT_EQ(expected.size(), 6 * plain.primitiveIndices().size());
   for (BuildSort sort : {BuildSort::Radix, BuildSort::Counting})
-    for (int threads : {1, 2}) {
+    for (int threads : {1, 2, 3}) {
       const BuildOptions o = opts(kind, overlap, sort, threads, height);
       MatrixTree t;
       std::vector<uint8_t> boxes = {1, 2, 3};  // stale content is replaced
@@ -389,6 +392,26 @@ TEST(BuildSort, SortLeafOrdersIdsAndTheirData) {
     std::sort(all.begin(), all.end());
     EXPECT_EQ(sortedIds, all) << "a permutation";
   }
+}
+
+TEST(BuildSort, TwoThreadsGivenATeamOfOne) {
+  // A two-thread build started inside a parallel region gets a team of one thread (no nested
+  // parallelism): thread 0 then takes every chunk from the front, the same tree and leaf boxes.
+  const CellSet cells = loadGrid("cfd/brick_tets.su2");
+  const BuildOptions o = opts(TreeKind::Octree, OverlapMode::Exact, BuildSort::Counting, 2);
+  MatrixTree ref, t;
+  std::vector<uint8_t> refBoxes, boxes;
+  MatrixTreeBuilder<CellSet>::build<6>(cells, o, ref, nullptr, &refBoxes, mtree::LeafBoxQuantizer());
+  const int levels = omp_get_max_active_levels();
+  omp_set_max_active_levels(1);
+#pragma omp parallel num_threads(2)
+  {
+#pragma omp single
+    MatrixTreeBuilder<CellSet>::build<6>(cells, o, t, nullptr, &boxes, mtree::LeafBoxQuantizer());
+  }
+  omp_set_max_active_levels(levels);
+  mtest::expectSameTree(ref, t, "brick_tets in a parallel region");
+  EXPECT_TRUE(boxes == refBoxes);
 }
 
 TEST(BuildSort, EmptySetAndBadValue) {

@@ -12,21 +12,23 @@
 // or with BuildSort::Counting (the leaf storage is dense after alloc):
 //   leaf counts references per leaf storage entry, counted by count+mark (each thread in its own
 //               first-touch numbering of the blocks) and copied or added to their final places;
-//               with several threads on a large leaf level, a pass with atomic increments
+//               with more than two threads on a large leaf level, a pass with atomic increments
 //   leaf scan   exclusive scan over the leaf storage; leaf ranges from it
 //   scatter     each reference's primitive id (and its data) at its leaf's next slot
-//   leaf order  with several threads only: each leaf's ids sorted ascending
+//   leaf order  with more than two threads only: each leaf's ids sorted ascending
 // and in both
 //   propagate   existence up to the root, level by level (step 9)
 // Pairs and scatter repeat no overlap test that count+mark made: its verdicts for
 // a primitive's first 64 candidate leaves are kept as a bit mask.
 // The result depends only on the input, never on the thread count or the sort: every parallel
 // step writes to positions fixed by a scan, the radix sort is stable and the counting sort
-// restores ascending ids per leaf, so both give the same leaf ranges and primitive order.
+// writes (one or two threads) or restores (more) ascending ids per leaf, so both give the same
+// leaf ranges and primitive order.
 #pragma once
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -146,6 +148,25 @@ struct HasVertices<L, std::void_t<decltype(std::declval<const L&>().vertices(std
                                   decltype(std::declval<const L&>().tester(Vec3(), std::declval<const Vec3*>(), 0))>>
     : std::true_type {};
 
+/// Two threads over [0, n) from both ends, inside a parallel region: thread 0 takes chunks of
+/// `chunk` primitives from the front and runs body(i) ascending over each, thread 1 takes them
+/// from the back and runs body(i) descending, until the chunks meet (`left` holds the number of
+/// chunks, ceil(n / chunk), on entry). Each thread sees one contiguous run of primitives, and
+/// a team of one takes every chunk from the front.
+template <class F>
+void fromBothEnds(int64_t n, int64_t chunk, std::atomic<int64_t>& left, F&& body) {
+  const int64_t chunks = (n + chunk - 1) / chunk;
+  const bool back = omp_get_thread_num() == 1;
+  for (int64_t k = 0; left.fetch_sub(1, std::memory_order_relaxed) > 0; ++k) {
+    const int64_t b = (back ? chunks - 1 - k : k) * chunk, e = std::min(n, b + chunk);
+    if (back) {
+      for (int64_t i = e - 1; i >= b; --i) body(i);
+    } else {
+      for (int64_t i = b; i < e; ++i) body(i);
+    }
+  }
+}
+
 struct PhaseClock {
   using clock = std::chrono::steady_clock;
   clock::time_point start = clock::now(), last = start;
@@ -214,12 +235,13 @@ int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, dou
       inv[a] = std::ldexp(1.0, ld[a]) / ext[a];
       hiCell[a] = (1 << ld[a]) - 1;
     }
+    // cellIndexNonNegative: cellIndex with a lower bound of 0 without a floor call per bound.
     double sum = 0;
     for (const Box& b : sample) {
       double c = 1;
       for (int a = 0; a < 3; ++a)
-        c *= cellIndex((b.hi[a] - root.lo[a]) * inv[a], 0, hiCell[a]) -
-             cellIndex((b.lo[a] - root.lo[a]) * inv[a], 0, hiCell[a]) + 1;
+        c *= cellIndexNonNegative((b.hi[a] - root.lo[a]) * inv[a], 0, hiCell[a]) -
+             cellIndexNonNegative((b.lo[a] - root.lo[a]) * inv[a], 0, hiCell[a]) + 1;
       sum += c;
     }
     return sum / static_cast<double>(sample.size());
@@ -256,6 +278,8 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   }
 
   const int threads = resolveThreads(opt.threads);
+  // Threads for a light pass over m items (see kSerialBelow).
+  auto lightThreads = [threads](int64_t m) { return m >= kSerialBelow ? threads : 1; };
   if (stats) *stats = BuildStats{};
   detail::PhaseClock clock(stats);
   const int64_t n = static_cast<int64_t>(prims.size());
@@ -264,7 +288,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   Box root;
   {
     std::vector<Box> partial(threads);
-#pragma omp parallel num_threads(threads)
+#pragma omp parallel num_threads(lightThreads(n))
     {
       Box b;
 #pragma omp for schedule(static)
@@ -389,14 +413,16 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   // entry) and counts its leaves in that numbering (leafCounts), without atomics; after the
   // allocation the threads' counts of each block are copied (one thread) or added up to its
   // final place. The counts, hence the tree, are those of the separate pass.
-  // With several threads each thread touches most blocks, so it holds counts for most of the
-  // leaf storage, then added up: that pays on volume grids (pipe_flow_tets, two threads: leaf
-  // counts 7-8 -> 0.1 ms) but not on surfaces, whose leaf storage is ~10^6 entries (lucy:
-  // count+mark +7-17 ms, leaf counts only -3-6 ms); there, and past 2^21 leaves in the dense
-  // level, the separate counting pass stays.
+  // Two threads split the primitives into two contiguous runs (from both ends), so each counts
+  // about its own half of the blocks: that pays on surfaces too (turbineblade, two threads:
+  // count+mark +7 ms, leaf counts -14 ms). With more threads each thread touches most blocks,
+  // so it holds counts for most of the leaf storage, then added up: that pays on volume grids
+  // (pipe_flow_tets: leaf counts 7-8 -> 0.1 ms) but not on surfaces, whose leaf storage is
+  // ~10^6 entries (lucy: count+mark +7-17 ms, leaf counts only -3-6 ms); there, past 2^21
+  // leaves in the dense level, the separate counting pass stays.
   const bool countHere =
       opt.sort == BuildSort::Counting &&
-      (threads == 1 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
+      (threads <= 2 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
   const uint32_t blockVolume = tree.leaves_.blockVolume();
   struct ThreadCounts {
     std::vector<uint32_t> ownOrder, ownCounts;
@@ -413,8 +439,10 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       t.leafCounts->clear();
     }
   }
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
-  for (int64_t i = 0; i < n; ++i) {
+  // Two threads split the primitives from both ends (see the scatter); then each thread counts
+  // the blocks of its own contiguous run instead of most of them.
+  const bool bothEnds = threads == 2;
+  auto countMark = [&](int64_t i) {
     const auto prim = prims.local(i);
     ThreadCounts* tc = countHere ? &perThread[static_cast<size_t>(omp_get_thread_num())] : nullptr;
     int lo[3], hi[3];
@@ -494,11 +522,19 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     }
     counts[i] = c;
     if (exact) masks[i] = mask;
+  };
+  if (bothEnds) {
+    std::atomic<int64_t> left{(n + 511) / 512};
+#pragma omp parallel num_threads(2)
+    detail::fromBothEnds(n, 512, left, countMark);
+  } else {
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
+    for (int64_t i = 0; i < n; ++i) countMark(i);
   }
   clock.lap("count+mark");
 
   // ---- allocate blocks (steps 3-4) ------------------------------------------------------------
-  tree.leaves_.allocateMarked(marks.data(), threads);
+  tree.leaves_.allocateMarked(marks.data(), lightThreads(int64_t(marks.size())));
   clock.lap("alloc");
 
   // The overlapped leaves of primitive i (local data `prim`), in the order of the count pass,
@@ -608,10 +644,13 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   } else {
     // ---- counting sort over the dense leaf storage --------------------------------------------
     // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): the
-    // references per leaf (counted by count+mark, or by a pass here), scan, scatter. With several threads the
-    // cursors are shared (atomic) and each leaf's ids are sorted afterwards; with one thread
-    // every update is a plain one and the primitives arrive in ascending order.
-    const bool shared = threads > 1;
+    // references per leaf (counted by count+mark, or by a pass here), scan, scatter. With one
+    // thread every update is a plain one and the primitives arrive in ascending order. With two,
+    // thread 0 fills each leaf from its start with ascending ids and thread 1 from its end with
+    // descending ones (it walks its run backwards): plain stores that meet where the leaf is
+    // full, in ascending order again. With more, the cursors are shared (atomic) and each leaf's
+    // ids are sorted afterwards.
+    const bool shared = threads > 2;
     const size_t L = tree.leaves_.data().size();
     const int64_t nl = static_cast<int64_t>(L);
     std::vector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
@@ -627,7 +666,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       } else {
         perLeaf.assign(L, 0);
       }
-#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
+#pragma omp parallel for num_threads(lightThreads(nl)) schedule(static) if (threads > 1)
       for (int64_t p = 0; p < np; ++p) {
         if (ptr[p] == MT_NULL) continue;
         uint32_t* dst = perLeaf.data() + size_t(ptr[p]) * blockVolume;
@@ -655,17 +694,18 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     }
     clock.lap("leaf counts");
 
-    numPairs = exclusiveScan(perLeaf.data(), cursor.data(), L, threads);
+    numPairs = exclusiveScan(perLeaf.data(), cursor.data(), L, lightThreads(nl));
     if (numPairs >= MT_NULL)
       throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
     {
       MtLeafRange* data = tree.leaves_.data().data();
       uint64_t leafCount = 0;
-#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : leafCount)
+#pragma omp parallel for num_threads(lightThreads(nl)) schedule(static) reduction(+ : leafCount)
       for (int64_t e = 0; e < nl; ++e) {
         if (perLeaf[e] == 0) continue;
         ++leafCount;
         data[e] = MtLeafRange{cursor[e], cursor[e] + perLeaf[e]};
+        if (bothEnds) perLeaf[e] = data[e].end;  // thread 1's cursor: the slot above its next one
       }
       if (stats) stats->leaves = leafCount;
     }
@@ -684,21 +724,25 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     constexpr size_t axisBytes = Bytes / 3;
     // Per-axis parts of a cell's candidate range, kept for ranges up to this many leaves per axis.
     constexpr int kAxisTable = 32;
+    std::atomic<int64_t> left{(n + 511) / 512};
 #pragma omp parallel num_threads(threads)
     {
       auto f = fn;  // one copy per thread
       uint8_t table[3][kAxisTable][byAxis ? axisBytes : 1];
-#pragma omp for schedule(dynamic, 512)
-      for (int64_t i = 0; i < n; ++i) {
+      const bool fromEnd = bothEnds && omp_get_thread_num() == 1;
+      auto scatterOne = [&](int64_t i) {
         const auto prim = prims.local(i);
         auto takeSlot = [&](int x, int y, int z) {
-          uint32_t& c = cursor[leaves.storageIndex(x, y, z)];
+          const uint32_t e = leaves.storageIndex(x, y, z);
           uint32_t slot;
           if (shared) {
+            uint32_t& c = cursor[e];
 #pragma omp atomic capture
             slot = c++;
+          } else if (fromEnd) {
+            slot = --perLeaf[e];
           } else {
-            slot = c++;
+            slot = cursor[e]++;
           }
           values[slot] = static_cast<uint32_t>(i);
           return slot;
@@ -717,18 +761,24 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
               std::memcpy(o + axisBytes, table[1][y - lo[1]], axisBytes);
               std::memcpy(o + 2 * axisBytes, table[2][z - lo[2]], axisBytes);
             });
-            continue;
+            return;
           }
         }
         forEachLeaf(i, prim, [&](int x, int y, int z) {
           const uint32_t slot = takeSlot(x, y, z);
           if constexpr (Bytes > 0) f(out + size_t(slot) * Bytes, prim, leafBox(x, y, z));
         });
+      };
+      if (bothEnds) {
+        detail::fromBothEnds(n, 512, left, scatterOne);
+      } else {
+#pragma omp for schedule(dynamic, 512)
+        for (int64_t i = 0; i < n; ++i) scatterOne(i);
       }
     }
     clock.lap("scatter");
 
-    // With several threads a leaf's slots were taken in any order: sort each leaf's ids
+    // With more than two threads a leaf's slots were taken in any order: sort each leaf's ids
     // (distinct) back to ascending, the radix sort's stable order.
     if (shared) {
       const MtLeafRange* data = tree.leaves_.data().data();
@@ -761,7 +811,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     // A child block maps into exactly one parent block; mark it.
     std::vector<uint8_t> pmarks(parent.pointerCount(), 0);
     const int64_t ncp = static_cast<int64_t>(cptr.size());
-#pragma omp parallel for num_threads(threads) schedule(static) if (ncp > 4096)
+#pragma omp parallel for num_threads(lightThreads(ncp)) schedule(static)
     for (int64_t p = 0; p < ncp; ++p) {
       if (cptr[p] == MT_NULL) continue;
       const int bx = static_cast<int>(p % cd.ptrDims[0]);
@@ -772,7 +822,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
 #pragma omp atomic write
       pmarks[parent.pointerIndex(i, j, k)] = 1;
     }
-    parent.allocateMarked(pmarks.data(), threads);
+    parent.allocateMarked(pmarks.data(), lightThreads(int64_t(pmarks.size())));
     // Scatter existence from every existing child entry to its parent (a byte store of 1 by
     // every writer: the result does not depend on their order). Only allocated child entries
     // are read, contiguously.
@@ -786,7 +836,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     const uint32_t mx = (1u << lbx) - 1, my = (1u << lby) - 1;
     const MtLeafRange* leafData = tree.leaves_.data().data();
     const uint8_t* innerData = l + 1 == H ? nullptr : tree.inner_[l + 1].data().data();
-#pragma omp parallel for num_threads(threads) schedule(static) if (ncb * cbv > 16384)
+#pragma omp parallel for num_threads(lightThreads(ncb * cbv)) schedule(static)
     for (int64_t b = 0; b < ncb; ++b) {
       int o[3];
       const uint32_t first = static_cast<uint32_t>(b) * cbv;
@@ -804,7 +854,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   }
   tree.empty_ = false;
   clock.lap("propagate");
-  tree.buildWalkCaches(threads);
+  tree.buildWalkCaches(lightThreads(int64_t(tree.leaves_.data().size())));
   clock.lap("walk caches");
   if (stats) {
     stats->references = numPairs;

@@ -9,6 +9,13 @@
 
 namespace mtree {
 
+/// Passes with about a nanosecond of work per item (bounds, scans, copies, existence marks) run
+/// on one thread below this many items (a few ms): a parallel region's start and barriers cost
+/// microseconds on an idle machine but scheduler time slices (4-8 ms each) on a loaded one. At
+/// 2^20, the surfaces' leaf levels (1-4 million entries) still took the parallel passes: lucy,
+/// two threads, loaded: leaf scan 20 ms where one thread takes 2.
+constexpr int64_t kSerialBelow = int64_t{1} << 22;
+
 /// Number of OpenMP threads to use: `requested` if > 0, else OpenMP's default.
 int resolveThreads(int requested);
 
