@@ -122,7 +122,7 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
       }
 }
 
-// Cell `id`'s points from the engine's copy into pts (3 doubles each); at most n points.
+// Cell `id`'s points as the engine reads them into pts (3 doubles each); at most n points.
 inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, double* pts)
 {
   const mtree::CellSet::PointIds pid = cells.cellPointIds(id);
@@ -913,7 +913,13 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   }
   // The cached cell bounds serve the build (read several times per cell there); queries compute
   // the few they need from the points: 24 bytes per cell not held.
+  const Clock::time_point tRelease = Clock::now();
   in.Cells.releaseBounds();
+  // So are the build's work arrays the tree keeps for a next build (counts and masks per cell,
+  // counts and cursors per leaf: as much as the tree itself on surfaces), which GetMemorySize
+  // does not count: a rebuild allocates them again.
+  in.Tree.releaseBuildScratch();
+  const double releaseMs = msSince(tRelease);
   {
     const mtree::Vec3 m = in.Cells.maxExtent();
     in.MaxCellExtent[0] = m.x;
@@ -927,6 +933,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     {
       os << "; " << ph.first << " " << ph.second;
     }
+    os << "; release " << releaseMs;
     os << "; total " << msSince(tStart);
     in.Phases = os.str();
   }

@@ -371,8 +371,9 @@ public:
   vtkIdType GetMemorySize();
   double GetLastBuildTime();
   /**
-   * Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; total ...";
-   * the tree phases depend on BuildSort, see there).
+   * Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; release
+   * ...; total ..."; the tree phases depend on BuildSort, see there; "release" frees the cell
+   * bounds and the build's work arrays).
    */
   const char* GetBuildPhases();
   ///@}

@@ -188,9 +188,13 @@ class CellSet {
       else __builtin_prefetch(&pts_.dp[3 * size_t(id[k])]);
     }
   }
-  /// The (conservative) bounds of cellBox() as a Box: what the tree build uses.
+  /// The (conservative) bounds of cellBox() as a Box: what the tree build uses (read straight
+  /// from the cache while there is one: the build's setup measured 10-30% slower through a copy).
   Box bounds(size_t c) const {
-    const std::array<float, 6> f = cellBox(c);
+    float g[6];
+    const float* f = g;
+    if (__builtin_expect(!box_.empty(), 1)) f = &box_[6 * c];
+    else boxOf(c, g);
     Box b;
     b.lo = Vec3(f[0], f[2], f[4]);
     b.hi = Vec3(f[1], f[3], f[5]);
