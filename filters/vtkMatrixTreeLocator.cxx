@@ -591,7 +591,9 @@ private:
 vtkMatrixTreeLocator::vtkMatrixTreeLocator()
   : Internals(new vtkMatrixTreeLocatorInternals)
 {
-  this->CacheCellBounds = 1;
+  // Off: 24 bytes per cell not held; only the queries with a tolerance and the proximity
+  // queries read cell bounds (see the class description).
+  this->CacheCellBounds = 0;
 }
 
 vtkMatrixTreeLocator::~vtkMatrixTreeLocator()
@@ -911,10 +913,14 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     vtkErrorMacro("BuildLocator failed: " << e.what());
     return;
   }
-  // The cached cell bounds serve the build (read several times per cell there); queries compute
-  // the few they need from the points: 24 bytes per cell not held.
+  // The cached cell bounds serve the build (read several times per cell there); unless
+  // CacheCellBounds is on, queries compute the few they need from the points: 24 bytes per cell
+  // not held.
   const Clock::time_point tRelease = Clock::now();
-  in.Cells.releaseBounds();
+  if (!this->CacheCellBounds)
+  {
+    in.Cells.releaseBounds();
+  }
   // So are the build's work arrays the tree keeps for a next build (counts and masks per cell,
   // counts and cursors per leaf: as much as the tree itself on surfaces), which GetMemorySize
   // does not count: a rebuild allocates them again.
@@ -2045,6 +2051,7 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetNumberOfThreads(other->NumberOfThreads);
   this->SetBuildSort(other->BuildSort);
   this->SetCellStorage(other->CellStorage);
+  this->SetCacheCellBounds(other->CacheCellBounds);
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
   this->SetBackend(other->Backend);
   this->SetOpenCLDevice(other->OpenCLDevice);
