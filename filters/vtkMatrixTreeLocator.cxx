@@ -32,6 +32,7 @@
 #endif
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -48,6 +49,9 @@ struct vtkMatrixTreeLocatorInternals
   // The data set's point array when Cells reads the points from it instead of a copy (float or
   // double arrays of 3 components): held so that it outlives a SetPoints() on the data set.
   vtkSmartPointer<vtkDataArray> PointArray;
+  // The same for the cell arrays Cells reads in place (a vtkCellArray's offsets and
+  // connectivity, an unstructured grid's types), so that they outlive a SetCells() on the data set.
+  vtkSmartPointer<vtkDataArray> OffsetsArray, ConnectivityArray, TypesArray;
   mtree::CellSet Cells;
   mtree::MatrixTree Tree;
   mtree::BuildStats Stats;
@@ -118,10 +122,10 @@ void ForEachChild(const mtree::MatrixTree& t, int l, const int c[3], F&& f)
       }
 }
 
-// Cell `id`'s points from the engine's copy into pts (3 doubles each); at most n points.
+// Cell `id`'s points as the engine reads them into pts (3 doubles each); at most n points.
 inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, double* pts)
 {
-  const uint32_t* pid = cells.cellPointIds(id);
+  const mtree::CellSet::PointIds pid = cells.cellPointIds(id);
   for (int64_t k = 0; k < n; ++k)
   {
     const mtree::Vec3 p = cells.point(pid[k]);
@@ -150,7 +154,7 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
   // polyhedra and the higher-order types do), so the generic cell's type is all there is to set.
   cell->SetCellType(type);
   const vtkIdType n = static_cast<vtkIdType>(in.Cells.numCellPoints(static_cast<size_t>(id)));
-  const uint32_t* pid = in.Cells.cellPointIds(static_cast<size_t>(id));
+  const mtree::CellSet::PointIds pid = in.Cells.cellPointIds(static_cast<size_t>(id));
   if (cell->PointIds->GetNumberOfIds() != n)
   {
     cell->PointIds->SetNumberOfIds(n);
@@ -587,7 +591,9 @@ private:
 vtkMatrixTreeLocator::vtkMatrixTreeLocator()
   : Internals(new vtkMatrixTreeLocatorInternals)
 {
-  this->CacheCellBounds = 1;
+  // Off: 24 bytes per cell not held; only the queries with a tolerance and the proximity
+  // queries read cell bounds (see the class description).
+  this->CacheCellBounds = 0;
 }
 
 vtkMatrixTreeLocator::~vtkMatrixTreeLocator()
@@ -708,8 +714,8 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   const int buildThreads = this->NumberOfThreads > 0
     ? this->NumberOfThreads
     : static_cast<int>(std::min<vtkIdType>(omp_get_max_threads(), std::max<vtkIdType>(1, nc / 32768)));
-  std::vector<uint32_t> offsets(static_cast<size_t>(nc) + 1, 0), conn;
-  std::vector<uint8_t> types(static_cast<size_t>(nc));
+  std::vector<uint32_t> offsets, conn; // the copy paths' arrays
+  std::vector<uint8_t> types;
   vtkUnstructuredGrid* ug = vtkUnstructuredGrid::SafeDownCast(ds);
   vtkCellArray* ca = ug && ug->GetCellTypesArray() ? ug->GetCells() : nullptr;
   // Polydata with polygons only (the surface meshes): cell c is polygon c, so its cell array is
@@ -721,8 +727,55 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   {
     ca = pd->GetPolys();
   }
-  if (ca && ca->GetNumberOfCells() == nc)
+  // With the points read in place, the cell arrays may be too (offsets and connectivity as VTK
+  // stores them, 32- or 64-bit; an unstructured grid's types): nothing copied per build, no
+  // bytes held (see CellStorage for the choice). Polygon meshes get their types from the sizes,
+  // as below.
+  mtree::CellArrays cellView;
+  vtkDataArray* viewOffsets = nullptr;
+  vtkDataArray* viewConn = nullptr;
+  const bool inPlace = this->CellStorage == CELLS_IN_PLACE ||
+    (this->CellStorage == CELLS_AUTOMATIC && ca &&
+      (!ca->IsStorage64Bit() || ca->GetNumberOfConnectivityIds() > 5 * ca->GetNumberOfCells()));
+  const bool viewCells = inPlace && ca && nc > 0 && ca->GetNumberOfCells() == nc && (viewFloats || viewDoubles);
+  if (viewCells)
   {
+    auto view = [&](auto* off, auto* cn) {
+      viewOffsets = off;
+      viewConn = cn;
+      cellView.offsets = off->GetPointer(0);
+      cellView.connectivity = cn->GetPointer(0);
+      cellView.connectivitySize = static_cast<size_t>(cn->GetNumberOfValues());
+      cellView.indexBytes = static_cast<int>(sizeof(*off->GetPointer(0)));
+      cellView.numCells = static_cast<size_t>(nc);
+      if (ug)
+      {
+        cellView.types = ug->GetCellTypesArray()->GetPointer(0);
+        return;
+      }
+      // vtkPolyData's types of polygons: 3 points a triangle, 4 a quad; other sizes are asked.
+      const auto* o = off->GetPointer(0);
+      cellView.typeCopy.resize(static_cast<size_t>(nc));
+      for (vtkIdType c = 0; c < nc; ++c)
+      {
+        const auto n = o[c + 1] - o[c];
+        cellView.typeCopy[c] =
+          static_cast<uint8_t>(n == 3 ? VTK_TRIANGLE : (n == 4 ? VTK_QUAD : ds->GetCellType(c)));
+      }
+    };
+    if (ca->IsStorage64Bit())
+    {
+      view(ca->GetOffsetsArray64(), ca->GetConnectivityArray64());
+    }
+    else
+    {
+      view(ca->GetOffsetsArray32(), ca->GetConnectivityArray32());
+    }
+  }
+  else if (ca && ca->GetNumberOfCells() == nc)
+  {
+    offsets.assign(static_cast<size_t>(nc) + 1, 0);
+    types.resize(static_cast<size_t>(nc));
     // Unstructured grids and polygon meshes: copy the cell arrays directly (the generic
     // per-cell loop below costs more than the whole tree build).
     if (ug)
@@ -778,6 +831,8 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   }
   else
   {
+    offsets.assign(static_cast<size_t>(nc) + 1, 0);
+    types.resize(static_cast<size_t>(nc));
     conn.reserve(static_cast<size_t>(nc) * 4);
     vtkNew<vtkIdList> ids;
     for (vtkIdType c = 0; c < nc; ++c)
@@ -812,9 +867,25 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   try
   {
     in.PointArray = nullptr;
+    in.OffsetsArray = nullptr;
+    in.ConnectivityArray = nullptr;
+    in.TypesArray = nullptr;
     auto viewPoints = [&](auto* array) {
-      in.Cells = mtree::CellSet(array->GetPointer(0), static_cast<size_t>(np), std::move(offsets), std::move(conn),
-        std::move(types), buildThreads);
+      if (viewCells)
+      {
+        in.Cells = mtree::CellSet(array->GetPointer(0), static_cast<size_t>(np), std::move(cellView), buildThreads);
+        in.OffsetsArray = viewOffsets;
+        in.ConnectivityArray = viewConn;
+        if (ug)
+        {
+          in.TypesArray = ug->GetCellTypesArray();
+        }
+      }
+      else
+      {
+        in.Cells = mtree::CellSet(array->GetPointer(0), static_cast<size_t>(np), std::move(offsets),
+          std::move(conn), std::move(types), buildThreads);
+      }
       in.PointArray = array;
     };
     if (viewFloats)
@@ -842,6 +913,19 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     vtkErrorMacro("BuildLocator failed: " << e.what());
     return;
   }
+  // The cached cell bounds serve the build (read several times per cell there); unless
+  // CacheCellBounds is on, queries compute the few they need from the points: 24 bytes per cell
+  // not held.
+  const Clock::time_point tRelease = Clock::now();
+  if (!this->CacheCellBounds)
+  {
+    in.Cells.releaseBounds();
+  }
+  // So are the build's work arrays the tree keeps for a next build (counts and masks per cell,
+  // counts and cursors per leaf: as much as the tree itself on surfaces), which GetMemorySize
+  // does not count: a rebuild allocates them again.
+  in.Tree.releaseBuildScratch();
+  const double releaseMs = msSince(tRelease);
   {
     const mtree::Vec3 m = in.Cells.maxExtent();
     in.MaxCellExtent[0] = m.x;
@@ -855,6 +939,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     {
       os << "; " << ph.first << " " << ph.second;
     }
+    os << "; release " << releaseMs;
     os << "; total " << msSince(tStart);
     in.Phases = os.str();
   }
@@ -960,7 +1045,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       if (boxTest)
       {
         // The segment must meet the cell's bounds (padded by tol) before a cell is fetched.
-        const float* cb = in.Cells.cellBox(id);
+        const std::array<float, 6> cb = in.Cells.cellBox(static_cast<size_t>(id));
         mtree::Box box;
         box.lo = mtree::Vec3(cb[0] - tol, cb[2] - tol, cb[4] - tol);
         box.hi = mtree::Vec3(cb[1] + tol, cb[3] + tol, cb[5] + tol);
@@ -1198,7 +1283,7 @@ vtkIdType vtkMatrixTreeLocator::FindClosestPointWithinRadius(double x[3], double
       for (uint32_t k = r.begin; k < r.end; ++k)
       {
         const vtkIdType id = tree.primitiveIndices()[k];
-        if (BoundsDistance2(x, in.Cells.cellBox(id)) > best || !tested.insert(id).second)
+        if (BoundsDistance2(x, in.Cells.cellBox(static_cast<size_t>(id)).data()) > best || !tested.insert(id).second)
         {
           continue;
         }
@@ -1306,8 +1391,8 @@ void vtkMatrixTreeLocator::FindCellsWithinBounds(double* bbox, vtkIdList* cells)
   query.hi = mtree::Vec3(bbox[1], bbox[3], bbox[5]);
   for (vtkIdType id : found)
   {
-    // The cached float bounds contain the exact ones: a miss is final, a hit is checked exactly.
-    const float* b = in.Cells.cellBox(id);
+    // The float bounds contain the exact ones: a miss is final, a hit is checked exactly.
+    const std::array<float, 6> b = in.Cells.cellBox(static_cast<size_t>(id));
     if (b[0] <= bbox[1] && b[1] >= bbox[0] && b[2] <= bbox[3] && b[3] >= bbox[2] && b[4] <= bbox[5] &&
       b[5] >= bbox[4] && in.Cells.exactBounds(static_cast<size_t>(id)).overlaps(query))
     {
@@ -1965,6 +2050,8 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetMaxCandidates(other->MaxCandidates);
   this->SetNumberOfThreads(other->NumberOfThreads);
   this->SetBuildSort(other->BuildSort);
+  this->SetCellStorage(other->CellStorage);
+  this->SetCacheCellBounds(other->CacheCellBounds);
   this->SetUseExistingSearchStructure(other->UseExistingSearchStructure);
   this->SetBackend(other->Backend);
   this->SetOpenCLDevice(other->OpenCLDevice);
@@ -1984,6 +2071,9 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "MaxCandidates: " << this->MaxCandidates << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   os << indent << "BuildSort: " << this->GetBuildSortAsString() << "\n";
+  os << indent << "CellStorage: "
+     << (this->CellStorage == CELLS_IN_PLACE ? "in place" : (this->CellStorage == CELLS_COPIED ? "copied" : "automatic"))
+     << "\n";
   os << indent << "Backend: " << this->GetBackendAsString() << "\n";
   os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
   os << indent << "OpenCLDeviceName: " << this->Internals->CLDeviceName << "\n";

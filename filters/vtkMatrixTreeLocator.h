@@ -20,8 +20,12 @@
  * BlockSize (8), NumberOfThreads for the build (0 = all), BuildSort (COUNTING, or the paper's
  * RADIX: same tree). Superclass settings used:
  * UseExistingSearchStructure (keep the tree when the data set changes), LazyEvaluation
- * (build on the first query); NumberOfCellsPerNode, MaxLevel, Automatic, Level, Tolerance and
- * CacheCellBounds are ignored: the height rule replaces them, and cell bounds are always kept.
+ * (build on the first query), CacheCellBounds (default off here: the cells' float bounds, 24
+ * bytes per cell, are freed after the build; on keeps them for the queries that read them:
+ * IntersectWithLine with a tolerance > 0, FindClosestPoint, FindCellsWithinBounds, which
+ * otherwise compute them from the points, 10-30% slower; FindCell and IntersectWithLine with
+ * tolerance 0 never read them); NumberOfCellsPerNode, MaxLevel, Automatic, Level and Tolerance
+ * are ignored: the height rule replaces them.
  *
  * Backend: CPU (default) or OPENCL, for the batched point location FindCells only. With OPENCL
  * the tree is still built on the CPU; the first FindCells after a build copies the tree, the
@@ -169,6 +173,32 @@ public:
   void SetBuildSortToRadix() { this->SetBuildSort(RADIX); }
   void SetBuildSortToCounting() { this->SetBuildSort(COUNTING); }
   const char* GetBuildSortAsString() const { return this->BuildSort == RADIX ? "radix" : "counting"; }
+  ///@}
+
+  enum CellStorages
+  {
+    CELLS_AUTOMATIC = 0,
+    CELLS_IN_PLACE = 1,
+    CELLS_COPIED = 2
+  };
+
+  ///@{
+  /**
+   * Where the engine reads the cells' point ids and types, for unstructured grids and
+   * polygon-only polydata whose points are a float or double array (other data sets are always
+   * copied):
+   * - CELLS_IN_PLACE: from the data set's own arrays (vtkCellArray's 32- or 64-bit offsets and
+   *   connectivity, the grid's types), kept referenced: no bytes held, but 64-bit ids are twice
+   *   the cache footprint of a 32-bit copy (FindCell 3-9% slower on hexahedra and wedges,
+   *   13-21% on tetrahedra and pyramids, measured on brick_*.su2).
+   * - CELLS_COPIED: a 32-bit copy of the point ids (4 bytes per id; types not kept when all
+   *   cells have one type).
+   * - CELLS_AUTOMATIC (default): in place when the arrays are 32-bit or the cells have more than
+   *   5 points on average (hexahedra, wedges: where the copy costs most), else copied.
+   * Changing it rebuilds the tree on the next query; the tree and the answers are the same.
+   */
+  vtkSetClampMacro(CellStorage, int, CELLS_AUTOMATIC, CELLS_COPIED);
+  vtkGetMacro(CellStorage, int);
   ///@}
 
   enum Backends
@@ -336,15 +366,18 @@ public:
   vtkIdType GetNumberOfReferences();
   /**
    * Bytes held: the tree (pointer matrices, blocks, leaf ranges, cell index lists), the
-   * engine's copy of the cells (points, 32-bit connectivity, 32-bit offsets unless every cell
-   * has the same number of points, types, float bounds) and the quantized leaf-local cell
-   * boxes (6 bytes per reference).
+   * engine's copy of the cells where there is one (points unless they are a float or double
+   * array; 32-bit connectivity, 32-bit offsets unless every cell has the same number of points,
+   * and types unless all cells have one type, when CellStorage copies them; float bounds with
+   * CacheCellBounds on) and the quantized leaf-local cell boxes (6 bytes per reference). The data set's arrays read in place are not
+   * counted; nor are the build's work arrays the tree keeps for the next build.
    */
   vtkIdType GetMemorySize();
   double GetLastBuildTime();
   /**
-   * Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; total ...";
-   * the tree phases depend on BuildSort, see there).
+   * Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; release
+   * ...; total ..."; the tree phases depend on BuildSort, see there; "release" frees the cell
+   * bounds and the build's work arrays).
    */
   const char* GetBuildPhases();
   ///@}
@@ -368,6 +401,7 @@ protected:
   double MaxCandidates = 16.0;
   int NumberOfThreads = 0;
   int BuildSort = COUNTING;
+  int CellStorage = CELLS_AUTOMATIC;
   int Backend = CPU;
   char* OpenCLDevice = nullptr;
   vtkIdType NumberOfOpenCLUploads = 0;

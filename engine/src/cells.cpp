@@ -63,20 +63,73 @@ std::vector<uint32_t> CellSet::narrow(const std::vector<int64_t>& v, const char*
   return out;
 }
 
+void CellSet::own(std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity, std::vector<uint8_t> types) {
+  if (offsets.empty() || offsets.size() != types.size() + 1)
+    throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
+  cells_ = Cells{};
+  cells_.n = types.size();
+  cells_.connSize = connectivity.size();
+  cells_.off = std::move(offsets);
+  cells_.conn32 = std::move(connectivity);
+  cells_.own = std::move(types);
+  cells_.rebind();
+  validateViewed(cells_.off.data(), cells_.conn32.data(), cells_.connSize);
+}
+
+void CellSet::viewCells(CellArrays a) {
+  if (!a.offsets || (a.connectivitySize && !a.connectivity) || (a.indexBytes != 4 && a.indexBytes != 8))
+    throw std::invalid_argument("CellSet: cell arrays need offsets, connectivity and 4- or 8-byte indices");
+  if (!a.types && !a.typeCopy.empty() && a.typeCopy.size() != a.numCells)
+    throw std::invalid_argument("CellSet: one type per cell expected");
+  if (a.connectivitySize >= 0xffffffffu) throw std::length_error("CellSet: connectivity past 2^32 - 1 entries");
+  cells_ = Cells{};
+  cells_.n = a.numCells;
+  cells_.connSize = a.connectivitySize;
+  cells_.view = true;
+  if (a.indexBytes == 8) {
+    validateViewed(static_cast<const int64_t*>(a.offsets), static_cast<const int64_t*>(a.connectivity),
+                   a.connectivitySize);
+    static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the low word of a 64-bit index is read first");
+    cells_.shift = 1;
+  } else {
+    validateViewed(static_cast<const int32_t*>(a.offsets), static_cast<const int32_t*>(a.connectivity),
+                   a.connectivitySize);
+  }
+  cells_.off32 = static_cast<const Word*>(a.offsets);
+  cells_.conn = static_cast<const Word*>(a.connectivity);
+  if (a.types) {
+    cells_.types = a.types;
+  } else if (!a.typeCopy.empty()) {
+    cells_.own = std::move(a.typeCopy);
+  } else {
+    cells_.types = typeCode(a.type);
+    cells_.typeMask = 0;
+  }
+  cells_.rebind();
+}
+
+template <class I>
+void CellSet::validateViewed(const I* off, const I* conn, size_t connSize) const {
+  const size_t n = cells_.n;
+  if (off[0] != 0 || static_cast<uint64_t>(off[n]) != connSize)
+    throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
+  if (connSize >= 0xffffffffu) throw std::length_error("CellSet: connectivity past 2^32 - 1 entries");
+  for (size_t c = 0; c < n; ++c)
+    if (off[c + 1] < off[c]) throw std::invalid_argument("CellSet: offsets must not decrease");
+  const int64_t np = static_cast<int64_t>(pts_.n);
+  for (size_t k = 0; k < connSize; ++k)
+    if (static_cast<int64_t>(conn[k]) < 0 || static_cast<int64_t>(conn[k]) >= np) {
+      const size_t c = static_cast<size_t>(std::upper_bound(off, off + n + 1, static_cast<I>(k)) - off) - 1;
+      throw std::invalid_argument("CellSet: cell " + std::to_string(c) + " refers to point " +
+                                  std::to_string(static_cast<int64_t>(conn[k])) + " of " + std::to_string(np));
+    }
+}
+
 void CellSet::validate() const {
   const size_t nc = 3 * pts_.n;
   for (size_t i = 0; i < nc; ++i)
     if (!std::isfinite(floatPoints_ ? double(pts_.fp[i]) : pts_.dp[i]))
       throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
-  const uint64_t np = pts_.n;
-  for (size_t c = 0; c + 1 < off_.size(); ++c)
-    if (off_[c + 1] < off_[c]) throw std::invalid_argument("CellSet: offsets must not decrease");
-  for (size_t k = 0; k < conn_.size(); ++k)
-    if (conn_[k] >= np) {
-      const size_t c = static_cast<size_t>(std::upper_bound(off_.begin(), off_.end(), uint32_t(k)) - off_.begin()) - 1;
-      throw std::invalid_argument("CellSet: cell " + std::to_string(c) + " refers to point " +
-                                  std::to_string(conn_[k]) + " of " + std::to_string(np));
-    }
 }
 
 void CellSet::dropUniformOffsets() {
@@ -84,11 +137,36 @@ void CellSet::dropUniformOffsets() {
   // in the connectivity, so 4 bytes per cell need not be stored (nor read per query).
   const size_t n = size();
   if (n == 0) return;
-  const uint32_t k = off_[1] - off_[0];
+  const uint32_t k = offset(1) - offset(0);
   for (size_t c = 1; c < n; ++c)
-    if (off_[c + 1] - off_[c] != k) return;
+    if (offset(c + 1) - offset(c) != k) return;
   uniform_ = k;
-  std::vector<uint32_t>().swap(off_);
+  if (!cells_.view) {
+    std::vector<uint32_t>().swap(cells_.off);
+    cells_.off32 = nullptr;
+  }
+}
+
+const uint8_t* CellSet::typeCode(uint8_t t) {
+  static const std::array<uint8_t, 256> kCodes = [] {
+    std::array<uint8_t, 256> codes{};
+    for (int i = 0; i < 256; ++i) codes[i] = static_cast<uint8_t>(i);
+    return codes;
+  }();
+  return &kCodes[t];
+}
+
+void CellSet::dropUniformTypes() {
+  // One type for all cells (most grids and surfaces): kept once, as a pointer into a table of
+  // every type code, instead of a byte per cell (and a read per query).
+  const size_t n = size();
+  if (n == 0 || cells_.typeMask == 0) return;
+  const uint8_t t = cells_.types[0];
+  for (size_t c = 1; c < n; ++c)
+    if (cells_.types[c] != t) return;
+  cells_.types = typeCode(t);
+  cells_.typeMask = 0;
+  std::vector<uint8_t>().swap(cells_.own);
 }
 
 void CellSet::keepFloatPointsIfExact() {
@@ -131,6 +209,21 @@ inline float roundOut(double x, int dir) {
 }
 }  // namespace
 
+void CellSet::boxOf(size_t c, float f[6]) const {
+  Box b = exactBounds(c);
+  const uint8_t t = type(c);
+  if (!b.empty() && !cellTopology(t) && t != kVoxel && t != kPixel) {
+    const Vec3 e = b.extent();
+    const double pad = 0.05 * std::max(e.x, std::max(e.y, e.z));
+    b.lo = b.lo - Vec3(pad, pad, pad);
+    b.hi = b.hi + Vec3(pad, pad, pad);
+  }
+  for (int a = 0; a < 3; ++a) {
+    f[2 * a] = roundOut(b.lo[a], -1);
+    f[2 * a + 1] = roundOut(b.hi[a], +1);
+  }
+}
+
 void CellSet::computeBounds(int threads) {
   const int64_t n = static_cast<int64_t>(size());
   box_.resize(static_cast<size_t>(n) * 6);
@@ -141,20 +234,11 @@ void CellSet::computeBounds(int threads) {
     Vec3 m(0, 0, 0);
 #pragma omp for schedule(static)
     for (int64_t c = 0; c < n; ++c) {
-      Box b = exactBounds(static_cast<size_t>(c));
-      const uint8_t t = types_[c];
-      if (!b.empty() && !cellTopology(t) && t != kVoxel && t != kPixel) {
-        const Vec3 e = b.extent();
-        const double pad = 0.05 * std::max(e.x, std::max(e.y, e.z));
-        b.lo = b.lo - Vec3(pad, pad, pad);
-        b.hi = b.hi + Vec3(pad, pad, pad);
-      }
       float* f = &box_[6 * static_cast<size_t>(c)];
-      for (int a = 0; a < 3; ++a) {
-        f[2 * a] = roundOut(b.lo[a], -1);
-        f[2 * a + 1] = roundOut(b.hi[a], +1);
-        if (!b.empty()) m[a] = std::max(m[a], double(f[2 * a + 1]) - double(f[2 * a]));
-      }
+      boxOf(static_cast<size_t>(c), f);
+      // Empty cells (no points) are inf/-inf: no extent.
+      for (int a = 0; a < 3; ++a)
+        if (f[2 * a] <= f[2 * a + 1]) m[a] = std::max(m[a], double(f[2 * a + 1]) - double(f[2 * a]));
     }
     ext[static_cast<size_t>(omp_get_thread_num())] = m;
   }

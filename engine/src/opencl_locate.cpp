@@ -48,8 +48,8 @@ void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const std
   for (size_t c = 0; c < nc; ++c) offsets[c + 1] = offsets[c] + static_cast<uint32_t>(cells.numCellPoints(c));
   conn.resize(offsets[nc]);
   for (size_t c = 0; c < nc; ++c) {
-    const uint32_t* ids = cells.cellPointIds(c);
-    std::copy(ids, ids + cells.numCellPoints(c), conn.begin() + offsets[c]);
+    const CellSet::PointIds ids = cells.cellPointIds(c);
+    for (int64_t k = 0; k < cells.numCellPoints(c); ++k) conn[offsets[c] + k] = ids[k];
     types[c] = cells.type(c);
   }
   Launcher run(impl, nullptr);

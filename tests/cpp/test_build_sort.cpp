@@ -83,7 +83,7 @@ std::vector<uint8_t> gatherLeafBoxes(const MatrixTree& tree, const CellSet& cell
     double scale[3];
     for (int a = 0; a < 3; ++a) scale[a] = 255.0 / (lb.hi[a] - lb.lo[a]);
     for (uint32_t k = r.begin; k < r.end; ++k) {
-      const float* b = cells.cellBox(prims[k]);
+      const std::array<float, 6> b = cells.cellBox(prims[k]);
       const double pad = 1e-3 * std::max({double(b[1]) - b[0], double(b[3]) - b[2], double(b[5]) - b[4]});
       uint8_t* q = &out[6 * size_t(k)];
       for (int a = 0; a < 3; ++a) {

@@ -204,7 +204,7 @@ TEST_P(CellEvalGrid, AgreesWithVtkEvaluatePosition) {
     ++evaluable;
     // The engine reads its own copy: it must hold VTK's coordinates exactly.
     double pts[24];
-    const uint32_t* pid = cells.cellPointIds(static_cast<size_t>(c));
+    const mtree::CellSet::PointIds pid = cells.cellPointIds(static_cast<size_t>(c));
     for (int64_t k = 0; k < np; ++k) {
       const mtree::Vec3 p = cells.point(pid[k]);
       double q[3];

@@ -3,6 +3,7 @@
 // Every accessor answers as with the arrays given, and the tree built over it is the same.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -24,8 +25,8 @@ void expectCellsAsGiven(const CellSet& cells, const std::vector<uint32_t>& off, 
   ASSERT_EQ(cells.size() + 1, off.size());
   for (size_t c = 0; c < cells.size(); ++c) {
     ASSERT_EQ(cells.numCellPoints(c), int64_t(off[c + 1]) - int64_t(off[c])) << "cell " << c;
-    ASSERT_EQ(cells.cellPointIds(c), cells.cellPointIds(0) + off[c]) << "cell " << c;
     for (int64_t k = 0; k < cells.numCellPoints(c); ++k) {
+      ASSERT_EQ(cells.cellPointIds(c)[k], conn[off[c] + k]) << "cell " << c << " point " << k;
       const mtree::Vec3 p = cells.cellPoint(c, k), q = cells.point(conn[off[c] + k]);
       ASSERT_TRUE(p.x == q.x && p.y == q.y && p.z == q.z) << "cell " << c << " point " << k;
     }
@@ -47,8 +48,8 @@ Arrays arraysOf(vtkUnstructuredGrid* g) {
   }
   a.off.push_back(0);
   for (size_t c = 0; c < cells.size(); ++c) {
-    const uint32_t* ids = cells.cellPointIds(c);
-    a.conn.insert(a.conn.end(), ids, ids + cells.numCellPoints(c));
+    const CellSet::PointIds ids = cells.cellPointIds(c);
+    for (int64_t k = 0; k < cells.numCellPoints(c); ++k) a.conn.push_back(ids[k]);
     a.off.push_back(static_cast<uint32_t>(a.conn.size()));
     a.types.push_back(cells.type(c));
   }
@@ -62,9 +63,10 @@ TEST(CellSet, SingleTypeGridsKeepNoOffsets) {
     const Arrays a = arraysOf(g);
     const CellSet cells(a.pts, a.off, a.conn, a.types);
     EXPECT_TRUE(cells.uniformCellSize()) << rel;
+    EXPECT_TRUE(cells.uniformType()) << rel;
     const size_t pointBytes = a.pts.size() * (cells.floatPoints() ? sizeof(float) : sizeof(double));
-    const size_t expected = pointBytes + a.conn.size() * sizeof(uint32_t) + a.types.size() + 6 * sizeof(float) * cells.size();
-    EXPECT_EQ(cells.bytes(), expected) << rel << ": no offsets counted";
+    const size_t expected = pointBytes + a.conn.size() * sizeof(uint32_t) + 6 * sizeof(float) * cells.size();
+    EXPECT_EQ(cells.bytes(), expected) << rel << ": no offsets or types counted";
     expectCellsAsGiven(cells, a.off, a.conn, rel);
   }
 }
@@ -146,7 +148,7 @@ void expectTightestFloatBounds(const CellSet& cells, const std::string& what) {
   const float inf = std::numeric_limits<float>::infinity();
   for (size_t c = 0; c < cells.size(); ++c) {
     const mtree::Box e = cells.exactBounds(c);
-    const float* f = cells.cellBox(c);
+    const std::array<float, 6> f = cells.cellBox(c);
     for (int a = 0; a < 3; ++a) {
       ASSERT_LE(double(f[2 * a]), e.lo[a]) << "cell " << c << " axis " << a;
       ASSERT_GT(double(std::nextafter(f[2 * a], inf)), e.lo[a]) << "cell " << c << " axis " << a;
@@ -180,6 +182,114 @@ TEST(CellSet, CachedBoundsAreTheTightestFloatsOutside) {
   }
   const CellSet edge(pts, off, conn, std::vector<uint8_t>(off.size() - 1, mtree::kTetra));
   expectTightestFloatBounds(edge, "edge cases");
+}
+
+/// arrays `a` as the caller's 32- or 64-bit offsets and connectivity (I) and types, in place.
+template <class I>
+struct ViewedArrays {
+  std::vector<I> off, conn;
+  std::vector<uint8_t> types;
+  std::vector<double> pts;
+  explicit ViewedArrays(const Arrays& a)
+      : off(a.off.begin(), a.off.end()), conn(a.conn.begin(), a.conn.end()), types(a.types), pts(a.pts) {}
+  mtree::CellArrays view(bool withTypes = true) const {
+    mtree::CellArrays v;
+    v.offsets = off.data();
+    v.connectivity = conn.data();
+    v.numCells = types.size();
+    v.connectivitySize = conn.size();
+    v.indexBytes = sizeof(I);
+    if (withTypes) v.types = types.data();
+    else v.typeCopy = types;
+    return v;
+  }
+  CellSet cells(bool withTypes = true) const { return CellSet(pts.data(), pts.size() / 3, view(withTypes)); }
+};
+
+/// Every accessor, the bounds (cached and computed) and the tree of `viewed` against `copy`.
+void expectSameCells(const CellSet& copy, CellSet viewed, const Arrays& a, const std::string& what) {
+  SCOPED_TRACE(what);
+  ASSERT_TRUE(viewed.cellsViewed());
+  ASSERT_EQ(viewed.size(), copy.size());
+  EXPECT_EQ(viewed.uniformCellSize(), copy.uniformCellSize());
+  EXPECT_EQ(viewed.uniformType(), copy.uniformType());
+  expectCellsAsGiven(viewed, a.off, a.conn, what);
+  for (size_t c = 0; c < copy.size(); ++c) {
+    ASSERT_EQ(viewed.type(c), a.types[c]) << "cell " << c;
+    ASSERT_EQ(viewed.cellBox(c), copy.cellBox(c)) << "cell " << c;
+  }
+  const mtree::Vec3 e = viewed.maxExtent(), f = copy.maxExtent();
+  EXPECT_TRUE(e.x == f.x && e.y == f.y && e.z == f.z);
+  mtree::MatrixTree t1, t2;
+  mtree::MatrixTreeBuilder<CellSet>::build(copy, mtree::BuildOptions{}, t1, nullptr);
+  mtree::MatrixTreeBuilder<CellSet>::build(viewed, mtree::BuildOptions{}, t2, nullptr);
+  mtest::expectSameTree(t1, t2, what);
+  // Released bounds are computed from the points: the same floats.
+  const CellSet copied = viewed;  // the copy reads the same arrays
+  viewed.releaseBounds();
+  EXPECT_FALSE(viewed.boundsCached());
+  for (size_t c = 0; c < copy.size(); ++c) {
+    ASSERT_EQ(viewed.cellBox(c), copy.cellBox(c)) << "released, cell " << c;
+    ASSERT_EQ(copied.cellPoint(c, 0).x, copy.cellPoint(c, 0).x) << "copied set, cell " << c;
+  }
+}
+
+TEST(CellSet, ViewedCellArraysReadAsTheCopy) {
+  // 64- and 32-bit arrays (vtkCellArray's two storages), a single-type grid, a mixed one
+  // (brick_tets plus one hexahedron) and one with an empty cell; types viewed or copied.
+  vtkSmartPointer<vtkUnstructuredGrid> g = mtest::readGrid("cfd/brick_tets.su2");
+  ASSERT_TRUE(g);
+  const Arrays single = arraysOf(g);
+  Arrays mixed = single;
+  for (int k = 0; k < 8; ++k) mixed.conn.push_back(mixed.conn[k]);
+  mixed.off.push_back(static_cast<uint32_t>(mixed.conn.size()));
+  mixed.types.push_back(mtree::kHexahedron);
+  Arrays withEmpty = single;
+  withEmpty.off.insert(withEmpty.off.begin() + 3, withEmpty.off[3]);
+  withEmpty.types.insert(withEmpty.types.begin() + 3, mtree::kEmptyCell);
+  for (const auto& [name, a] : {std::pair<std::string, const Arrays&>{"single", single}, {"mixed", mixed},
+                                {"with an empty cell", withEmpty}}) {
+    const CellSet copy(a.pts, a.off, a.conn, a.types);
+    const ViewedArrays<int64_t> v64(a);
+    const ViewedArrays<int32_t> v32(a);
+    expectSameCells(copy, v64.cells(), a, name + ", 64-bit");
+    expectSameCells(copy, v32.cells(), a, name + ", 32-bit");
+    expectSameCells(copy, v64.cells(false), a, name + ", 64-bit, types copied");
+    // Nothing of the cells is held but the cached bounds (the points are viewed too).
+    EXPECT_EQ(v64.cells().bytes(), 6 * sizeof(float) * a.types.size()) << name;
+    CellSet released = v32.cells();
+    released.releaseBounds();
+    EXPECT_EQ(released.bytes(), 0u) << name;
+  }
+  // One type for all cells, given as `type` alone.
+  const ViewedArrays<int64_t> v(single);
+  mtree::CellArrays byType = v.view();
+  byType.types = nullptr;
+  byType.type = mtree::kTetra;
+  const CellSet uniform(v.pts.data(), v.pts.size() / 3, byType);
+  EXPECT_TRUE(uniform.uniformType());
+  expectSameCells(CellSet(single.pts, single.off, single.conn, single.types), uniform, single, "one type");
+}
+
+TEST(CellSet, ViewedCellArraysAreChecked) {
+  const std::vector<double> pts = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  const uint8_t tet = mtree::kTetra;
+  auto make = [&](std::vector<int64_t> off, std::vector<int64_t> conn) {
+    mtree::CellArrays a;
+    a.offsets = off.data();
+    a.connectivity = conn.data();
+    a.numCells = off.size() - 1;
+    a.connectivitySize = conn.size();
+    a.type = tet;
+    return CellSet(pts.data(), 4, a);
+  };
+  EXPECT_NO_THROW(make({0, 4}, {0, 1, 2, 3}));
+  EXPECT_THROW(make({0, 4}, {0, 1, 2, 4}), std::invalid_argument);   // point 4 of 4
+  EXPECT_THROW(make({0, 4}, {0, 1, -1, 3}), std::invalid_argument);  // negative
+  EXPECT_THROW(make({0, 4}, {0, 1, 2, 3 + (int64_t{1} << 32)}), std::invalid_argument);  // past 32 bits
+  EXPECT_THROW(make({0, 3}, {0, 1, 2, 3}), std::invalid_argument);   // last offset != size
+  EXPECT_THROW(make({0, 3, 2, 4}, {0, 1, 2, 3}), std::invalid_argument);  // decreasing
+  EXPECT_THROW(make({1, 4}, {0, 1, 2, 3}), std::invalid_argument);   // first offset != 0
 }
 
 }  // namespace

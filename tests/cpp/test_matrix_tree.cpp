@@ -393,6 +393,20 @@ TEST_P(RealMeshTree, DeterministicAcrossThreadCounts) {
 // occupancy bit equals `range.begin != MT_NULL` (every entry of every allocated leaf block).
 // Both caches must be in use on these meshes (8^3 leaf blocks, small upper levels), or the walk's
 // fast paths would go untested; a rebuild with a different block edge drops the leaf masks.
+// The work arrays a build keeps for the next one: freed on request, and a build after that
+// (allocating them again) gives the same tree.
+TEST_P(RealMeshTree, ReleasedBuildScratchRebuildsTheSameTree) {
+  MatrixTree t = mtest::buildTree(mesh_, mtest::options(kind_, 0, 8, 2));
+  EXPECT_GT(t.buildScratchBytes(), 0u);
+  const size_t bytes = t.bytes();
+  t.releaseBuildScratch();
+  EXPECT_EQ(t.buildScratchBytes(), 0u);
+  EXPECT_EQ(t.bytes(), bytes);
+  mtest::expectSameTree(t, tree_, "released");
+  mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(mesh_, mtest::options(kind_, 0, 8, 2), t, nullptr);
+  mtest::expectSameTree(t, tree_, "rebuilt after the release");
+}
+
 TEST_P(RealMeshTree, WalkCachesMirrorTheLevels) {
   const MatrixTree& t = tree_;
   const int H = t.height();

@@ -5,9 +5,11 @@ import os
 
 import numpy as np
 import pytest
-from vtkmodules.util.numpy_support import numpy_to_vtk
-from vtkmodules.vtkCommonCore import vtkPoints
-from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkUnstructuredGrid
+from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+from vtkmodules.vtkCommonCore import (VTK_ID_TYPE, reference, vtkDoubleArray, vtkIdList, vtkIdTypeArray,
+                                      vtkPoints)
+from vtkmodules.vtkCommonDataModel import (VTK_TETRA, vtkCellArray, vtkGenericCell, vtkPolyData,
+                                           vtkUnstructuredGrid)
 from vtkmodules.vtkFiltersCore import vtkAppendFilter
 
 import matrixtree
@@ -22,7 +24,6 @@ def mixed_polygons() -> vtkPolyData:
     mesh = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
     pts = np.array([mesh.GetPoint(i) for i in range(mesh.GetNumberOfPoints())])
     polys = mesh.GetPolys()
-    from vtkmodules.util.numpy_support import vtk_to_numpy
     off, conn = vtk_to_numpy(polys.GetOffsetsArray()), vtk_to_numpy(polys.GetConnectivityArray())
     tris = conn.reshape(-1, 3)
     extra, cells = [], []
@@ -115,3 +116,143 @@ def test_points_read_in_place_or_copied_give_the_same_locator(dtype):
     g.SetPoints(q)  # the old array stays alive in the locator
     loc.UseExistingSearchStructureOn()
     assert [loc.FindCell(list(x)) for x in probe] == before
+
+
+def same_cells(ds, bits: int, int_points: bool):
+    """A copy of ds with its cell arrays in 32- or 64-bit storage and its points as int32
+    (read through a copy by the locator) or as float64 (read in place, as the cell arrays);
+    ds's coordinates must be integers."""
+    out = ds.NewInstance()
+    out.DeepCopy(ds)
+    arrays = [out.GetCells()] if isinstance(out, vtkUnstructuredGrid) else [out.GetPolys()]
+    for ca in arrays:
+        if bits == 32:
+            ca.ConvertTo32BitStorage()
+        else:
+            ca.ConvertTo64BitStorage()
+        assert ca.IsStorage64Bit() == (bits == 64)
+    pts = vtk_to_numpy(ds.GetPoints().GetData())
+    p = vtkPoints()
+    p.SetData(numpy_to_vtk(pts.astype(np.int32 if int_points else np.float64), deep=True))
+    out.SetPoints(p)
+    return out
+
+
+def answers(loc, ds, seed):
+    """FindCells, IntersectSegments (tolerance 0 and > 0), FindClosestPoint and
+    FindCellsWithinBounds of loc on seeded probes of ds."""
+    rng = np.random.default_rng(seed)
+    b = np.array(ds.GetBounds()).reshape(3, 2)
+    diag = float(np.linalg.norm(b[:, 1] - b[:, 0]))
+    x = b[:, 0] + rng.random((3000, 3)) * (b[:, 1] - b[:, 0])
+    x = np.vstack([x, cell_centres(ds, 13)])
+    p = vtkPoints()
+    p.SetData(numpy_to_vtk(x, deep=True))
+    ids, pc, w = vtkIdTypeArray(), vtkDoubleArray(), vtkDoubleArray()
+    loc.FindCells(p, ids, pc, w)
+    out = [vtk_to_numpy(ids).copy(), vtk_to_numpy(pc).copy(), vtk_to_numpy(w).copy()]
+    u = rng.normal(size=(1500, 3))
+    x2 = x[:1500] + 0.2 * diag * u / np.linalg.norm(u, axis=1)[:, None]
+    for tol in (0.0, 1e-3 * diag):
+        t, c = vtkDoubleArray(), vtkIdTypeArray()
+        loc.IntersectSegments(numpy_to_vtk(x[:1500], deep=True), numpy_to_vtk(x2, deep=True), tol, t, c)
+        out += [vtk_to_numpy(t).copy(), vtk_to_numpy(c).copy()]
+    gc = vtkGenericCell()
+    for q in x[:200]:
+        cp, cid, sub, d2 = [0.0] * 3, reference(0), reference(0), reference(0.0)
+        loc.FindClosestPoint(list(q), cp, gc, cid, sub, d2)
+        out.append(np.array(cp + [int(cid), float(d2)]))
+        lst = vtkIdList()
+        r = 0.03 * diag
+        loc.FindCellsWithinBounds([q[0] - r, q[0] + r, q[1] - r, q[1] + r, q[2] - r, q[2] + r], lst)
+        out.append(np.array([lst.GetId(k) for k in range(lst.GetNumberOfIds())]))
+    return out
+
+
+def integer_grids():
+    """Grids with integer coordinates: brick_hex in units of 1e-3 (hexahedra only), the mixed
+    polygons of mixed_polygons() scaled by 1e4 (triangles, quads, polygons) as polydata and as
+    an unstructured grid."""
+    grid = matrixtree.read_grid(os.path.join(scenes.data_dir(), "cfd", "brick_hex.su2"))
+    out = []
+    for ds, scale in ((grid, 1000.0), (mixed_polygons(), 1e4)):
+        pts = vtk_to_numpy(ds.GetPoints().GetData()).astype(np.float64)
+        g = ds.NewInstance()
+        g.DeepCopy(ds)
+        p = vtkPoints()
+        p.SetData(numpy_to_vtk(np.round(pts * scale), deep=True))
+        g.SetPoints(p)
+        out.append(g)
+    out.append(as_grid(out[1]))
+    return out
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_cell_arrays_read_in_place_give_the_copy_paths_answers(which):
+    """The cell arrays read in place (32- and 64-bit vtkCellArray storage; an unstructured grid's
+    types, or a polygon mesh's types from its sizes), copied to 32 bits from float points, and
+    CellStorage's automatic choice, against the copy path of integer points (which copies the
+    cells too): same tree, same answers to every query; in place, the bytes held shrink by at
+    least the copy's 4 bytes per connectivity entry."""
+    ds = integer_grids()[which]
+    ref_ds = same_cells(ds, 64, int_points=True)
+    ref = locator(ref_ds)
+    ref_answers = answers(ref, ref_ds, which)
+    for bits, storage in ((32, vtkMatrixTreeLocator.CELLS_IN_PLACE), (64, vtkMatrixTreeLocator.CELLS_IN_PLACE),
+                          (64, vtkMatrixTreeLocator.CELLS_COPIED), (64, vtkMatrixTreeLocator.CELLS_AUTOMATIC)):
+        v = same_cells(ds, bits, int_points=False)
+        loc = locator(v, CellStorage=storage)
+        assert loc.GetTreeHeight() == ref.GetTreeHeight()
+        assert loc.GetNumberOfLeaves() == ref.GetNumberOfLeaves()
+        assert loc.GetNumberOfReferences() == ref.GetNumberOfReferences()
+        conn = v.GetCells() if isinstance(v, vtkUnstructuredGrid) else v.GetPolys()
+        ids = conn.GetNumberOfConnectivityIds()
+        # Automatic: in place where the cells average more than 5 points (brick_hex), else copied.
+        in_place = storage == vtkMatrixTreeLocator.CELLS_IN_PLACE or (
+            storage == vtkMatrixTreeLocator.CELLS_AUTOMATIC and ids > 5 * conn.GetNumberOfCells())
+        assert (storage == vtkMatrixTreeLocator.CELLS_AUTOMATIC) <= (in_place == (which == 0))
+        if in_place:
+            assert loc.GetMemorySize() <= ref.GetMemorySize() - 4 * ids
+            in_place_bytes = loc.GetMemorySize()
+        else:  # the copy of the ids, not of the points
+            assert in_place_bytes + 4 * ids <= loc.GetMemorySize() < ref.GetMemorySize()
+        got = answers(loc, v, which)
+        assert len(got) == len(ref_answers)
+        for a, b in zip(got, ref_answers):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_viewed_cell_arrays_outlive_set_cells():
+    """The locator keeps the cell arrays it reads: after SetCells() on the grid it answers as
+    before (UseExistingSearchStructure), and a rebuild reads the new cells."""
+    grid = matrixtree.read_grid(os.path.join(scenes.data_dir(), "cfd", "brick_tets.su2"))
+    g = vtkUnstructuredGrid()
+    g.DeepCopy(grid)
+    loc = locator(g)
+    probe = cell_centres(g, 7)
+    before = [loc.FindCell(list(x)) for x in probe]
+    assert all(c >= 0 for c in before)
+    # The same tetrahedra in reverse order, in new arrays (the old ones lose the grid's reference).
+    n = g.GetNumberOfCells()
+    conn = vtk_to_numpy(g.GetCells().GetConnectivityArray()).reshape(n, 4)[::-1].copy()
+    ca = vtkCellArray()
+    ca.SetData(numpy_to_vtk(np.arange(0, 4 * n + 1, 4, dtype=np.int64), deep=True, array_type=VTK_ID_TYPE),
+               numpy_to_vtk(conn.ravel().astype(np.int64), deep=True, array_type=VTK_ID_TYPE))
+    g.SetCells(VTK_TETRA, ca)
+    loc.UseExistingSearchStructureOn()
+    assert [loc.FindCell(list(x)) for x in probe] == before
+    loc.UseExistingSearchStructureOff()
+    loc.BuildLocator()
+    assert [loc.FindCell(list(x)) for x in probe] == [n - 1 - c for c in before]
+
+
+def test_cache_cell_bounds_keeps_24_bytes_per_cell_and_the_answers():
+    """CacheCellBounds (off by default) keeps the cells' float bounds after the build: 24 bytes per
+    cell more, the same answers (the queries that read bounds compute the same floats without)."""
+    ds = integer_grids()[0]
+    off = locator(ds)
+    assert not off.GetCacheCellBounds()
+    on = locator(ds, CacheCellBounds=True)
+    assert on.GetMemorySize() == off.GetMemorySize() + 24 * ds.GetNumberOfCells()
+    for a, b in zip(answers(on, ds, 5), answers(off, ds, 5)):
+        np.testing.assert_array_equal(a, b)

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -62,9 +63,27 @@ const CellTopology* cellTopology(uint8_t type);  // nullptr: no table (bounding 
 /// products of the cell's edges with the box axes — exact for convex cells.
 enum class CellAxes : int { Faces = 0, All = 1 };
 
+/// The caller's cell arrays, read in place instead of copied (VTK's vtkCellArray storage and a
+/// vtkUnstructuredGrid's types): offsets (numCells + 1 entries, from 0 to connectivitySize)
+/// and connectivity as signed integers of indexBytes (4 or 8) bytes. They must stay alive and
+/// unchanged while the set is used. Types: the caller's array (types), else an owned copy
+/// (typeCopy), else every cell is `type`.
+struct CellArrays {
+  const void* offsets = nullptr;
+  const void* connectivity = nullptr;
+  size_t numCells = 0;
+  size_t connectivitySize = 0;
+  int indexBytes = 8;
+  const uint8_t* types = nullptr;
+  std::vector<uint8_t> typeCopy;
+  uint8_t type = kEmptyCell;
+};
+
 class CellSet {
  public:
   static constexpr int kMaxLocalPoints = 8;
+  /// A 32-bit word of the caller's 32- or 64-bit index arrays (read through this type only).
+  typedef uint32_t __attribute__((may_alias)) Word;
 
   CellSet() = default;
   /// points: 3 doubles per point; offsets: numCells + 1 entries into connectivity; types: one
@@ -73,12 +92,12 @@ class CellSet {
   /// entries or points (indices are stored in 32 bits). threads: OpenMP threads for the cached
   /// bounds (0 = OpenMP's default).
   CellSet(std::vector<double> points, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
-          std::vector<uint8_t> types, int threads = 0)
-      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
-    if (points.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
+          std::vector<uint8_t> types, int threads = 0) {
     pts_.d = std::move(points);
+    if (pts_.d.size() % 3) throw std::invalid_argument("CellSet: points must come in triples");
     pts_.n = pts_.d.size() / 3;
     pts_.rebind();
+    own(std::move(offsets), std::move(connectivity), std::move(types));
     init(threads);
   }
   /// The same over the caller's points, not copied: 3 floats (or doubles) per point, which must
@@ -87,16 +106,18 @@ class CellSet {
   /// points as doubles (not narrowed, as there is no copy to save).
   template <class T, class = std::enable_if_t<std::is_same_v<T, float> || std::is_same_v<T, double>>>
   CellSet(const T* points, size_t numPoints, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,
-          std::vector<uint8_t> types, int threads = 0)
-      : off_(std::move(offsets)), conn_(std::move(connectivity)), types_(std::move(types)) {
-    if constexpr (std::is_same_v<T, float>) {
-      pts_.fp = points;
-      floatPoints_ = true;
-    } else {
-      pts_.dp = points;
-    }
-    pts_.n = numPoints;
-    pts_.view = true;
+          std::vector<uint8_t> types, int threads = 0) {
+    viewPoints(points, numPoints);
+    own(std::move(offsets), std::move(connectivity), std::move(types));
+    init(threads);
+  }
+  /// The same over the caller's points and cell arrays (see CellArrays), neither copied: bytes()
+  /// counts neither. The 64-bit arrays are read through the low word of each entry, so every
+  /// offset and point index must lie below 2^32 (checked, as the other limits).
+  template <class T, class = std::enable_if_t<std::is_same_v<T, float> || std::is_same_v<T, double>>>
+  CellSet(const T* points, size_t numPoints, CellArrays cells, int threads = 0) {
+    viewPoints(points, numPoints);
+    viewCells(std::move(cells));
     init(threads);
   }
   /// The same from 64-bit offsets and connectivity (converted; see above for the limits).
@@ -105,13 +126,21 @@ class CellSet {
       : CellSet(std::move(points), narrow(offsets, "offset"), narrow(connectivity, "point index"), std::move(types),
                 threads) {}
 
-  size_t size() const { return types_.size(); }
-  uint8_t type(size_t c) const { return types_[c]; }
+  size_t size() const { return cells_.n; }
+  /// Cell c's type (one type for all cells is kept as that type, not per cell).
+  uint8_t type(size_t c) const { return cells_.types[c & cells_.typeMask]; }
   int64_t numCellPoints(size_t c) const {
-    return uniform_ >= 0 ? uniform_ : int64_t(off_[c + 1]) - int64_t(off_[c]);
+    return uniform_ >= 0 ? uniform_ : int64_t(offset(c + 1)) - int64_t(offset(c));
   }
-  const uint32_t* cellPointIds(size_t c) const { return conn_.data() + firstPoint(c); }
-  Vec3 cellPoint(size_t c, int64_t k) const { return point(conn_[firstPoint(c) + k]); }
+  /// Cell c's point indices: ids[k], k < numCellPoints(c) (32-bit words of the owned copy, or
+  /// the low words of the caller's 64-bit entries).
+  struct PointIds {
+    const Word* p;
+    int shift;
+    uint32_t operator[](int64_t k) const { return p[size_t(k) << shift]; }
+  };
+  PointIds cellPointIds(size_t c) const { return PointIds{cells_.conn + (firstPoint(c) << cells_.shift), cells_.shift}; }
+  Vec3 cellPoint(size_t c, int64_t k) const { return point(cells_.conn[(firstPoint(c) + size_t(k)) << cells_.shift]); }
   size_t numPoints() const { return pts_.n; }
   /// Point i, as given (points that are all exact floats are kept as floats, read back exactly).
   Vec3 point(size_t i) const {
@@ -120,29 +149,52 @@ class CellSet {
   }
   /// Whether the points are kept as floats (every coordinate given was exactly a float).
   bool floatPoints() const { return floatPoints_; }
-  /// Whether the offsets were dropped because every cell has the same number of points.
+  /// Whether the offsets are not read because every cell has the same number of points (and,
+  /// when they were copied, not kept).
   bool uniformCellSize() const { return uniform_ >= 0; }
+  /// Whether every cell has the same type (kept once, not per cell).
+  bool uniformType() const { return cells_.typeMask == 0; }
+  /// Whether the cell arrays are the caller's (the CellArrays constructor), not a copy.
+  bool cellsViewed() const { return cells_.view; }
 
-  /// Cached bounds as 6 floats (xmin xmax ymin ymax zmin zmax, VTK's order), rounded outwards
+  /// Cell bounds as 6 floats (xmin xmax ymin ymax zmin zmax, VTK's order), rounded outwards
   /// so they contain the exact bounds; higher-order and polyhedral cells are padded by 5% of
   /// their largest extent, because curved edges can bulge past the nodes. Empty cells: inf/-inf.
-  const float* cellBox(size_t c) const { return &box_[6 * c]; }
+  /// Cached from the constructor until releaseBounds(), then computed from the points (the
+  /// same floats).
+  std::array<float, 6> cellBox(size_t c) const {
+    std::array<float, 6> f;
+    if (box_.empty()) boxOf(c, f.data());
+    else std::copy(&box_[6 * c], &box_[6 * c] + 6, f.begin());
+    return f;
+  }
+  /// Frees the cached bounds (24 bytes per cell; the tree build is what reads them often):
+  /// cellBox() and bounds() compute them from then on.
+  void releaseBounds() { std::vector<float>().swap(box_); }
+  /// Whether the bounds are cached (see releaseBounds).
+  bool boundsCached() const { return !box_.empty() || size() == 0; }
   /// A hint that cell c's bounds are read soon (the builder's gather over the leaves).
-  void prefetch(size_t c) const { __builtin_prefetch(&box_[6 * c]); }
+  void prefetch(size_t c) const {
+    if (!box_.empty()) __builtin_prefetch(&box_[6 * c]);
+  }
   /// A hint that cell c's point ids are read soon (the ray queries' candidates, known ahead).
-  void prefetchPointIds(size_t c) const { __builtin_prefetch(conn_.data() + firstPoint(c)); }
+  void prefetchPointIds(size_t c) const { __builtin_prefetch(cells_.conn + (firstPoint(c) << cells_.shift)); }
   /// A hint that cell c's points are read soon: reads its point ids (prefetch them first).
   void prefetchPoints(size_t c) const {
-    const uint32_t* id = cellPointIds(c);
+    const PointIds id = cellPointIds(c);
     const int64_t n = std::min<int64_t>(numCellPoints(c), kMaxLocalPoints);
     for (int64_t k = 0; k < n; ++k) {
       if (floatPoints_) __builtin_prefetch(&pts_.fp[3 * size_t(id[k])]);
       else __builtin_prefetch(&pts_.dp[3 * size_t(id[k])]);
     }
   }
-  /// Cached (conservative) bounds as a Box: what the tree build uses.
+  /// The (conservative) bounds of cellBox() as a Box: what the tree build uses (read straight
+  /// from the cache while there is one: the build's setup measured 10-30% slower through a copy).
   Box bounds(size_t c) const {
-    const float* f = cellBox(c);
+    float g[6];
+    const float* f = g;
+    if (__builtin_expect(!box_.empty(), 1)) f = &box_[6 * c];
+    else boxOf(c, g);
     Box b;
     b.lo = Vec3(f[0], f[2], f[4]);
     b.hi = Vec3(f[1], f[3], f[5]);
@@ -276,7 +328,7 @@ class CellSet {
   /// coordinate of p lies outside [-tol, 1 + tol]. Degenerate or non-finite cases answer true
   /// (let the exact test decide).
   bool tetraMayContain(size_t c, Vec3 p, double tol) const {
-    const uint32_t* id = cellPointIds(c);
+    const PointIds id = cellPointIds(c);
     const Vec3 p0 = point(id[0]), p1 = point(id[1]), p2 = point(id[2]), p3 = point(id[3]);
     const Vec3 a = p1 - p0, b = p2 - p0, d = p3 - p0, r = p - p0;
     const Vec3 bd = cross(b, d);
@@ -291,28 +343,50 @@ class CellSet {
 
   /// Bytes held: points (12 bytes each when they are all exact floats, else 24; none when they
   /// are the caller's), offsets (none when every cell has the same number of points: the
-  /// offsets are then c x that number), connectivity, types and cached bounds.
+  /// offsets are then c x that number), connectivity and types (none when they are the
+  /// caller's; no types when all cells have one type), and the cached bounds (until released).
   size_t bytes() const {
     return pts_.d.size() * sizeof(double) + pts_.f.size() * sizeof(float) +
-           (off_.size() + conn_.size()) * sizeof(uint32_t) + types_.size() + box_.size() * sizeof(float);
+           (cells_.off.size() + cells_.conn32.size()) * sizeof(uint32_t) + cells_.own.size() +
+           box_.size() * sizeof(float);
   }
   /// Whether the points are the caller's (the view constructors), not a copy.
   bool pointsViewed() const { return pts_.view; }
 
  private:
   static std::vector<uint32_t> narrow(const std::vector<int64_t>& v, const char* what);
+  template <class T>
+  void viewPoints(const T* points, size_t numPoints) {
+    if constexpr (std::is_same_v<T, float>) {
+      pts_.fp = points;
+      floatPoints_ = true;
+    } else {
+      pts_.dp = points;
+    }
+    pts_.n = numPoints;
+    pts_.view = true;
+  }
+  void own(std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity, std::vector<uint8_t> types);
+  void viewCells(CellArrays cells);
   void validate() const;
+  template <class I>
+  void validateViewed(const I* off, const I* conn, size_t connSize) const;
   void dropUniformOffsets();
+  void dropUniformTypes();
+  /// The address of code t in a static table of all 256 codes (one type for all cells).
+  static const uint8_t* typeCode(uint8_t t);
   void keepFloatPointsIfExact();
-  size_t firstPoint(size_t c) const { return uniform_ >= 0 ? size_t(uniform_) * c : size_t(off_[c]); }
+  uint32_t offset(size_t c) const { return cells_.off32[c << cells_.shift]; }
+  size_t firstPoint(size_t c) const { return uniform_ >= 0 ? size_t(uniform_) * c : size_t(offset(c)); }
+  /// Cell c's bounds as cellBox() gives them, computed from its points.
+  void boxOf(size_t c, float f[6]) const;
   void computeBounds(int threads);
-  /// The constructors' common checks and set-up, once the points are in place.
+  /// The constructors' common checks and set-up, once the points and cells are in place.
   void init(int threads) {
     if (pts_.n >= 0xffffffffu) throw std::length_error("CellSet: more than 2^32 - 1 points");
-    if (off_.empty() || off_.size() != types_.size() + 1 || off_.front() != 0 || off_.back() != conn_.size())
-      throw std::invalid_argument("CellSet: offsets must have numCells + 1 entries from 0 to the connectivity size");
     validate();
     dropUniformOffsets();
+    dropUniformTypes();
     keepFloatPointsIfExact();
     computeBounds(threads);
   }
@@ -350,10 +424,54 @@ class CellSet {
   };
   Points pts_;
   bool floatPoints_ = false;
-  std::vector<uint32_t> off_, conn_;
-  int64_t uniform_ = -1;  // >= 0: every cell has this many points and off_ is released
-  std::vector<uint8_t> types_;
-  std::vector<float> box_;  // 6 per cell
+  /// The cells: owned 32-bit offsets, connectivity and types, or the caller's arrays (view),
+  /// read through off32, conn and types (which follow the owned arrays through copies and
+  /// moves). Entry i of the offsets and connectivity is the word at i << shift (shift 1: the
+  /// low word of a 64-bit entry). One type for all cells: types points at that type in a
+  /// static table and typeMask is 0.
+  struct Cells {
+    std::vector<uint32_t> off, conn32;
+    std::vector<uint8_t> own;
+    const Word* off32 = nullptr;
+    const Word* conn = nullptr;
+    const uint8_t* types = nullptr;
+    size_t typeMask = ~size_t{0};
+    size_t n = 0;
+    size_t connSize = 0;
+    int shift = 0;
+    bool view = false;
+    Cells() = default;
+    Cells(const Cells& o) { *this = o; }
+    Cells& operator=(const Cells& o) {
+      off = o.off;
+      conn32 = o.conn32;
+      own = o.own;
+      off32 = o.off32;
+      conn = o.conn;
+      types = o.types;
+      typeMask = o.typeMask;
+      n = o.n;
+      connSize = o.connSize;
+      shift = o.shift;
+      view = o.view;
+      rebind();
+      return *this;
+    }
+    // A moved vector keeps its buffer, so the pointers stay right.
+    Cells(Cells&&) noexcept = default;
+    Cells& operator=(Cells&&) noexcept = default;
+    /// Points the readers at the owned arrays that are in use.
+    void rebind() {
+      if (!view) {
+        off32 = off.empty() ? nullptr : off.data();
+        conn = conn32.empty() ? nullptr : conn32.data();
+      }
+      if (typeMask != 0 && !own.empty()) types = own.data();
+    }
+  };
+  Cells cells_;
+  int64_t uniform_ = -1;  // >= 0: every cell has this many points (owned offsets are released)
+  std::vector<float> box_;  // 6 per cell, until releaseBounds()
   Vec3 maxExt_;
   CellAxes axes_ = CellAxes::Faces;
 };

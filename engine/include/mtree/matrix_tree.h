@@ -146,6 +146,15 @@ class MatrixTree {
   uint32_t levelBlocks(int l) const { return l == height_ ? leaves_.numBlocks() : inner_[l].numBlocks(); }
   /// Total bytes of the tree: all levels plus the primitive index array.
   size_t bytes() const;
+  /// Bytes of the work arrays the last build kept for the next one (not in bytes()).
+  size_t buildScratchBytes() const {
+    const BuildScratch& s = scratch_;
+    return (s.counts.capacity() + s.offsets.capacity() + s.keys.capacity() + s.values.capacity() +
+            s.tmpKeys.capacity() + s.tmpValues.capacity()) * sizeof(uint32_t) +
+           s.masks.capacity() * sizeof(uint64_t) + s.marks.capacity();
+  }
+  /// Frees those work arrays (the next build allocates them again).
+  void releaseBuildScratch() { scratch_ = BuildScratch{}; }
   uint64_t numLeaves() const;
 
   // ---- queries (all const and thread-safe) ----
