@@ -256,17 +256,21 @@ public:
     alignas(16) static const uint8_t kFlip[48] = { 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0,
       0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff,
       0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff };
-    const uint8_t pat[6] = { qmax[0], static_cast<uint8_t>(255 - qmin[0]), qmax[1],
-      static_cast<uint8_t>(255 - qmin[1]), qmax[2], static_cast<uint8_t>(255 - qmin[2]) };
-    alignas(16) uint8_t t[48];
-    for (int i = 0; i < 8; ++i)
-    {
-      std::memcpy(t + 6 * i, pat, 6);
-    }
+    // The thresholds repeat the 6-byte pattern; the 8-byte words of the 48 start at bytes 0, 8,
+    // ... 40, i.e. at pattern offsets 0, 2, 4, 0, 2, 4. They are formed in registers: written
+    // to memory byte by byte and read back as vectors, they stalled on store forwarding.
+    const uint64_t p = uint64_t{ qmax[0] } | uint64_t{ static_cast<uint8_t>(255 - qmin[0]) } << 8 |
+      uint64_t{ qmax[1] } << 16 | uint64_t{ static_cast<uint8_t>(255 - qmin[1]) } << 24 |
+      uint64_t{ qmax[2] } << 32 | uint64_t{ static_cast<uint8_t>(255 - qmin[2]) } << 40;
+    const long long w0 = static_cast<long long>(p | p << 48);
+    const long long w2 = static_cast<long long>(p >> 16 | p << 32);
+    const long long w4 = static_cast<long long>(p >> 32 | p << 16);
+    this->Thr[0] = _mm_set_epi64x(w2, w0);
+    this->Thr[1] = _mm_set_epi64x(w0, w4);
+    this->Thr[2] = _mm_set_epi64x(w4, w2);
     for (int v = 0; v < 3; ++v)
     {
       this->Flip[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(kFlip + 16 * v));
-      this->Thr[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(t + 16 * v));
     }
 #endif
   }
@@ -317,13 +321,13 @@ private:
 constexpr double kTetraTolerance = 1e-3;
 
 // The point-location loop over the candidates [k, end) of leaf n, the leaf that
-// MatrixTree::leafFind gives for x: FindCell runs it from the leaf's first candidate, the OpenCL
-// backend from the candidate where the device stopped.
+// MatrixTree::leafFind gives for x (with the range it read): FindCell runs it from the leaf's
+// first candidate, the OpenCL backend from the candidate where the device stopped.
 vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3],
   const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights,
   bool engineEval)
 {
-  const MtLeafRange r = in.Tree.leafRange(n);
+  const MtLeafRange r = n.range; // leafFind's read of the leaf
   const uint32_t* ids = in.Tree.primitiveIndices().data();
   const uint8_t* boxes = in.LeafBoxes.data();
   // The leaf's boxes and its cell ids are two independent reads (usually cache misses): start
@@ -895,8 +899,7 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
   {
     return -1;
   }
-  return ScanCandidates(
-    this->DataSet, in, x, n, in.Tree.leafRange(n).begin, cell, pcoords, weights, this->EngineCellEvaluation);
+  return ScanCandidates(this->DataSet, in, x, n, n.range.begin, cell, pcoords, weights, this->EngineCellEvaluation);
 }
 
 #if VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 2, 0)
