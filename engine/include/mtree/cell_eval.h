@@ -392,7 +392,8 @@ inline NewtonIsa& newtonIsa() {
 }
 inline bool haveAvx2() {
 #if MTREE_CELL_EVAL_AVX2
-  static const bool ok = __builtin_cpu_supports("avx2");
+  // cpu_init: harmless after libgcc's own initialisation, needed if this runs before it.
+  static const bool ok = (__builtin_cpu_init(), __builtin_cpu_supports("avx2"));
   return ok;
 #else
   return false;
