@@ -17,6 +17,7 @@
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
+#include "vtkQuad.h"
 #include "vtkSmartPointer.h"
 
 #include "mtree/builder.h"
@@ -392,6 +393,54 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     }
   }
   return -1;
+}
+
+// vtkHexahedron::IntersectWithLine (VTK 9.1) for a segment whose hit is certain to lie on face
+// `face` (convexFirstHitIfCertain's face: every other face of the cell is far from the line, so
+// VTK's loop over the six faces finds only this one, or only this one first): VTK's own
+// vtkQuad::IntersectWithLine on that face, whose points are set as vtkHexahedron sets them (the
+// quad keeps the point ids vtkQuad's constructor gives it, as vtkHexahedron's own quad does: they
+// only break ties between equal diagonals), and the face's pcoords mapped as vtkHexahedron 9.1
+// maps them (face 0 (0, r, 0), 1 (1, r, 0), 2 (r, 0, s), 3 (r, 1, s), 4 (r, s, 0), 5 (r, s, 1)).
+// One quad test instead of six. False if the quad reports no hit (the caller asks the cell).
+bool HexahedronFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
+  double tol, double& t, double x[3], double pcoords[3], int& subId)
+{
+  static thread_local vtkSmartPointer<vtkQuad> quad = vtkSmartPointer<vtkQuad>::New();
+  const mtree::CellTopology* topo = mtree::cellTopology(mtree::kHexahedron);
+  const uint32_t* pid = cells.cellPointIds(static_cast<size_t>(id));
+  for (int k = 0; k < 4; ++k)
+  {
+    const mtree::Vec3 p = cells.point(pid[topo->face[face][k]]);
+    quad->GetPoints()->SetPoint(k, p.x, p.y, p.z);
+  }
+  double pc[3];
+  if (!quad->IntersectWithLine(p1, p2, tol, t, x, pc, subId))
+  {
+    return false;
+  }
+  static const double kFixed[6] = { 0.0, 1.0, 0.0, 1.0, 0.0, 1.0 };
+  switch (face)
+  {
+    case 0:
+    case 1:
+      pcoords[0] = kFixed[face];
+      pcoords[1] = pc[0];
+      pcoords[2] = 0.0;
+      break;
+    case 2:
+    case 3:
+      pcoords[0] = pc[0];
+      pcoords[1] = kFixed[face];
+      pcoords[2] = pc[1];
+      break;
+    default:
+      pcoords[0] = pc[0];
+      pcoords[1] = pc[1];
+      pcoords[2] = kFixed[face];
+      break;
+  }
+  return true;
 }
 
 // The ray queries' first test of a leaf's candidates (tol = 0): the segment o + t d, t in
@@ -943,6 +992,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     const bool deferCertain = pass == 0 && tol == 0.0;
     double deferredT = VTK_DOUBLE_MAX;
     vtkIdType deferredId = -1;
+    int deferredFace = -1; // the face holding its hit, where certain (HexahedronFaceHit)
     best = VTK_DOUBLE_MAX;
     bestId = -1;
     // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
@@ -976,8 +1026,9 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       // Then the cell's points: most cells whose box the segment crosses are proved missed
       // (or hit only beyond the best t so far) without VTK (segment_filter.h).
       double tc;
+      int face = -1;
       const mtree::CellVerdict verdict =
-        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc);
+        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc, &face);
       if (verdict == mtree::CellVerdict::kMiss)
       {
         return;
@@ -988,6 +1039,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         {
           deferredT = tc;
           deferredId = id;
+          deferredFace = face;
         }
         return;
       }
@@ -1054,7 +1106,11 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     }
     FillCell(this->DataSet, in, deferredId, cell);
     filled = deferredId;
-    if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
+    // A hexahedron whose hit face is known: VTK's test of that face alone gives its answer.
+    const bool faceHit = deferredFace >= 0 &&
+      in.Cells.type(static_cast<size_t>(deferredId)) == mtree::kHexahedron &&
+      HexahedronFaceHit(in.Cells, deferredId, deferredFace, p1, p2, tol, tt, xx, pc, sid);
+    if (faceHit || cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
     {
       if (bestId < 0 || tt < best)
       {

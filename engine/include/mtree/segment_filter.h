@@ -207,7 +207,7 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
 /// cell's own extra test, e.g. a quad's diagonals).
 template <class Veto>
 inline bool certainCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx,
-                             Veto&& veto) {
+                             Veto&& veto, int* faces = nullptr) {
   te = -std::numeric_limits<double>::infinity();
   tx = std::numeric_limits<double>::infinity();
   int ie = -1, ix = -1;
@@ -230,6 +230,7 @@ inline bool certainCrossings(const double* l1, const double* dl, int nf, double 
     if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
     if (veto(tc, ic)) return false;
   }
+  if (faces) faces[0] = ie, faces[1] = ix;
   return true;
 }
 
@@ -315,7 +316,18 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
 /// holds it well inside and the other well outside), neither crossing is near an end of the
 /// segment, and the cell is not flat. m is tetraFirstHitIfCertain's margin. A warped face, a
 /// non-convex or degenerate cell, and a segment that misses: false (VTK decides).
-inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+///
+/// face (optional): on true, the face (the topology's numbering, VTK's) that holds the hit, or
+/// -1. It is given only when the line crosses both the entry and the exit face at an angle:
+/// |cos| of the angle between the segment and either face's normal >= kSteepCrossing. Then no
+/// other face of the cell comes within m kSteepCrossing L of the line (a face j crossed at t_j
+/// before the entry lies outside the entry face's plane by (te - t_j) |dl_entry| L, and
+/// (te - t_j) |dl_j| >= m because the entry is m inside plane j; the same after the exit), so
+/// VTK's face tests, exact containment at tol 0, reject every face but the two crossed, and the
+/// other crossed face's t is not the first: VTK's hit is that face's, whatever the other faces.
+constexpr double kSteepCrossing = 0.05;
+inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t,
+                                    int* face = nullptr) {
   if (!f.valid || f.tol != 0) return false;
   const uint8_t type = cells.type(c);
   if (type != kHexahedron && type != kWedge && type != kPyramid) return false;
@@ -393,14 +405,25 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
     return false;
   };
   double te, tx;
-  return certainCrossings(l1, dl, nf, m, te, tx, nearDiagonal) && firstCrossingInSegment(te, tx, t);
+  int crossed[2];
+  if (!certainCrossings(l1, dl, nf, m, te, tx, nearDiagonal, crossed) || !firstCrossingInSegment(te, tx, t))
+    return false;
+  if (face) {
+    // |dl| = |cos| |d| / L; f.invLen = 1 / |d|.
+    const double steep = kSteepCrossing * invL;
+    const bool clear = std::fabs(dl[crossed[0]]) * f.invLen >= steep && std::fabs(dl[crossed[1]]) * f.invLen >= steep;
+    *face = clear ? (t == te ? crossed[0] : crossed[1]) : -1;
+  }
+  return true;
 }
 
 /// tetraFirstHitIfCertain or convexFirstHitIfCertain, by the cell's type.
-inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+/// face: as convexFirstHitIfCertain's (-1 for tetrahedra).
+inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t, int* face = nullptr) {
   const uint8_t type = cells.type(c);
+  if (face) *face = -1;
   if (type == kTetra) return tetraFirstHitIfCertain(f, cells, c, t);
-  return convexFirstHitIfCertain(f, cells, c, t);
+  return convexFirstHitIfCertain(f, cells, c, t, face);
 }
 
 /// What the ray queries ask of a candidate: segmentMayHitCell (kMiss: VTK cannot hit it at
@@ -408,7 +431,8 @@ inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_
 /// once for both. kAskVtk otherwise. The same answers as the two calls in turn.
 enum class CellVerdict { kMiss, kAskVtk, kCertain };
 inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax, bool wantCertain,
-                              double& t) {
+                              double& t, int* face = nullptr) {
+  if (face) *face = -1;
   if (f.valid && cells.type(c) == kTetra && cells.numCellPoints(c) == 4) {
     const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
     const int verdict = tetraMayHit(f, v, tMax);
@@ -416,7 +440,7 @@ inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_
     if (verdict > 0) return wantCertain && tetraCertainHit(f, v, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
   }
   if (!segmentMayHitCell(f, cells, c, tMax)) return CellVerdict::kMiss;
-  return wantCertain && firstHitIfCertain(f, cells, c, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
+  return wantCertain && firstHitIfCertain(f, cells, c, t, face) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
 }
 
 }  // namespace mtree
