@@ -18,6 +18,7 @@
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
 #include "vtkQuad.h"
+#include "vtkTriangle.h"
 #include "vtkSmartPointer.h"
 
 #include "mtree/builder.h"
@@ -395,51 +396,68 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   return -1;
 }
 
-// vtkHexahedron::IntersectWithLine (VTK 9.1) for a segment whose hit is certain to lie on face
-// `face` (convexFirstHitIfCertain's face: every other face of the cell is far from the line, so
-// VTK's loop over the six faces finds only this one, or only this one first): VTK's own
-// vtkQuad::IntersectWithLine on that face, whose points are set as vtkHexahedron sets them (the
-// quad keeps the point ids vtkQuad's constructor gives it, as vtkHexahedron's own quad does: they
-// only break ties between equal diagonals), and the face's pcoords mapped as vtkHexahedron 9.1
-// maps them (face 0 (0, r, 0), 1 (1, r, 0), 2 (r, 0, s), 3 (r, 1, s), 4 (r, s, 0), 5 (r, s, 1)).
-// One quad test instead of six. False if the quad reports no hit (the caller asks the cell).
-bool HexahedronFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
+// vtkHexahedron::IntersectWithLine and vtkWedge::IntersectWithLine (VTK 9.1) for a segment whose
+// hit is certain to lie on face `face` (convexFirstHitIfCertain's face: every other face of the
+// cell is far from the line, so VTK's loop over the faces finds only this one, or this one
+// first): VTK's own vtkQuad or vtkTriangle IntersectWithLine on that face, its points set as the
+// cell sets them (the quad keeps the point ids vtkQuad's constructor gives it, as the cells' own
+// quads do: they only break ties between equal diagonals), and the face's pcoords (r, s) mapped
+// as the cell maps them in 9.1 (checked against the library by
+// tests/python/test_locator.py::test_ray_hit_values_are_vtks_own):
+//   hexahedron  face 0 (0, r, 0), 1 (1, r, 0), 2 (r, 0, s), 3 (r, 1, s), 4 (r, s, 0), 5 (r, s, 1);
+//   wedge       face 0 (r, s, 0), 1 (r, s, 1), 2 (s, 0, r), 3 (1 - s, s, r), 4 (0, s, r).
+// One face test instead of six (five). False if the face reports no hit (the caller asks the
+// cell) or the type has no mapping here.
+bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
   double tol, double& t, double x[3], double pcoords[3], int& subId)
 {
-  static thread_local vtkSmartPointer<vtkQuad> quad = vtkSmartPointer<vtkQuad>::New();
-  const mtree::CellTopology* topo = mtree::cellTopology(mtree::kHexahedron);
-  const uint32_t* pid = cells.cellPointIds(static_cast<size_t>(id));
-  for (int k = 0; k < 4; ++k)
-  {
-    const mtree::Vec3 p = cells.point(pid[topo->face[face][k]]);
-    quad->GetPoints()->SetPoint(k, p.x, p.y, p.z);
-  }
-  double pc[3];
-  if (!quad->IntersectWithLine(p1, p2, tol, t, x, pc, subId))
+  const uint8_t type = cells.type(static_cast<size_t>(id));
+  if (type != mtree::kHexahedron && type != mtree::kWedge)
   {
     return false;
   }
-  static const double kFixed[6] = { 0.0, 1.0, 0.0, 1.0, 0.0, 1.0 };
-  switch (face)
+  static thread_local vtkSmartPointer<vtkQuad> quad = vtkSmartPointer<vtkQuad>::New();
+  static thread_local vtkSmartPointer<vtkTriangle> triangle = vtkSmartPointer<vtkTriangle>::New();
+  const mtree::CellTopology* topo = mtree::cellTopology(type);
+  const int n = topo->faceSize[face];
+  vtkCell* f = n == 4 ? static_cast<vtkCell*>(quad) : static_cast<vtkCell*>(triangle);
+  const uint32_t* pid = cells.cellPointIds(static_cast<size_t>(id));
+  for (int k = 0; k < n; ++k)
   {
-    case 0:
-    case 1:
-      pcoords[0] = kFixed[face];
-      pcoords[1] = pc[0];
-      pcoords[2] = 0.0;
-      break;
-    case 2:
-    case 3:
-      pcoords[0] = pc[0];
-      pcoords[1] = kFixed[face];
-      pcoords[2] = pc[1];
-      break;
-    default:
-      pcoords[0] = pc[0];
-      pcoords[1] = pc[1];
-      pcoords[2] = kFixed[face];
-      break;
+    const mtree::Vec3 p = cells.point(pid[topo->face[face][k]]);
+    f->GetPoints()->SetPoint(k, p.x, p.y, p.z);
   }
+  double pc[3];
+  if (!f->IntersectWithLine(p1, p2, tol, t, x, pc, subId))
+  {
+    return false;
+  }
+  const double r = pc[0], s = pc[1];
+  double out[3];
+  if (type == mtree::kHexahedron)
+  {
+    switch (face)
+    {
+      case 0: out[0] = 0.0, out[1] = r, out[2] = 0.0; break;
+      case 1: out[0] = 1.0, out[1] = r, out[2] = 0.0; break;
+      case 2: out[0] = r, out[1] = 0.0, out[2] = s; break;
+      case 3: out[0] = r, out[1] = 1.0, out[2] = s; break;
+      case 4: out[0] = r, out[1] = s, out[2] = 0.0; break;
+      default: out[0] = r, out[1] = s, out[2] = 1.0; break;
+    }
+  }
+  else
+  {
+    switch (face)
+    {
+      case 0: out[0] = r, out[1] = s, out[2] = 0.0; break;
+      case 1: out[0] = r, out[1] = s, out[2] = 1.0; break;
+      case 2: out[0] = s, out[1] = 0.0, out[2] = r; break;
+      case 3: out[0] = 1.0 - s, out[1] = s, out[2] = r; break;
+      default: out[0] = 0.0, out[1] = s, out[2] = r; break;
+    }
+  }
+  std::copy(out, out + 3, pcoords);
   return true;
 }
 
@@ -992,7 +1010,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     const bool deferCertain = pass == 0 && tol == 0.0;
     double deferredT = VTK_DOUBLE_MAX;
     vtkIdType deferredId = -1;
-    int deferredFace = -1; // the face holding its hit, where certain (HexahedronFaceHit)
+    int deferredFace = -1; // the face holding its hit, where certain (CertainFaceHit)
     best = VTK_DOUBLE_MAX;
     bestId = -1;
     // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
@@ -1106,10 +1124,10 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     }
     FillCell(this->DataSet, in, deferredId, cell);
     filled = deferredId;
-    // A hexahedron whose hit face is known: VTK's test of that face alone gives its answer.
-    const bool faceHit = deferredFace >= 0 &&
-      in.Cells.type(static_cast<size_t>(deferredId)) == mtree::kHexahedron &&
-      HexahedronFaceHit(in.Cells, deferredId, deferredFace, p1, p2, tol, tt, xx, pc, sid);
+    // A hexahedron or wedge whose hit face is known: VTK's test of that face alone gives its
+    // answer.
+    const bool faceHit =
+      deferredFace >= 0 && CertainFaceHit(in.Cells, deferredId, deferredFace, p1, p2, tol, tt, xx, pc, sid);
     if (faceHit || cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
     {
       if (bestId < 0 || tt < best)
