@@ -407,12 +407,15 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
 //   hexahedron  face 0 (0, r, 0), 1 (1, r, 0), 2 (r, 0, s), 3 (r, 1, s), 4 (r, s, 0), 5 (r, s, 1);
 //   wedge       face 0 (r, s, 0), 1 (r, s, 1), 2 (s, 0, r), 3 (1 - s, s, r), 4 (0, s, r).
 // One face test instead of six (five). False if the face reports no hit (the caller asks the
-// cell) or the type has no mapping here.
+// cell), the type has no mapping here, or the VTK is not 9.1 (whose mappings these are).
 bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
   double tol, double& t, double x[3], double pcoords[3], int& subId)
 {
   const uint8_t type = cells.type(static_cast<size_t>(id));
-  if (type != mtree::kHexahedron && type != mtree::kWedge)
+  const bool mapped = VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) &&
+    VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0) &&
+    (type == mtree::kHexahedron || type == mtree::kWedge);
+  if (!mapped)
   {
     return false;
   }
