@@ -325,9 +325,16 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
 /// (te - t_j) |dl_j| >= m because the entry is m inside plane j; the same after the exit), so
 /// VTK's face tests, exact containment at tol 0, reject every face but the two crossed, and the
 /// other crossed face's t is not the first: VTK's hit is that face's, whatever the other faces.
+///
+/// miss (optional): set when the cell passes the planarity and convexity checks and the line,
+/// for t in [-1e-9, 1 + 1e-9], stays outside some face plane by m L (the function then returns
+/// false): every point of the segment is then m L from the convex cell and from each of its
+/// faces (VTK's triangles lie within round-off, planeEps L <= m L, of those planes), so none
+/// of VTK's exact (tol 0) face tests can accept a crossing: VTK reports no hit.
 constexpr double kSteepCrossing = 0.05;
 inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t,
-                                    int* face = nullptr) {
+                                    int* face = nullptr, bool* miss = nullptr) {
+  if (miss) *miss = false;
   if (!f.valid || f.tol != 0) return false;
   const uint8_t type = cells.type(c);
   if (type != kHexahedron && type != kWedge && type != kPyramid) return false;
@@ -404,6 +411,23 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
     }
     return false;
   };
+  if (miss) {
+    // Outside plane i by m where l1[i] + t dl[i] <= -m: for t <= lo_i (dl > 0), t >= hi_i
+    // (dl < 0), everywhere or nowhere (dl == 0). Those sets cover [a, b] when one of them
+    // does, or when the last "t <=" set reaches the first "t >=" set.
+    const double a = -1e-9, b = 1 + 1e-9;
+    double upTo = -std::numeric_limits<double>::infinity(), from = std::numeric_limits<double>::infinity();
+    bool covered = false;
+    for (int i = 0; i < nf; ++i) {
+      if (dl[i] > 0) upTo = std::max(upTo, (-m - l1[i]) / dl[i]);
+      else if (dl[i] < 0) from = std::min(from, (-m - l1[i]) / dl[i]);
+      else covered = covered || l1[i] <= -m;
+    }
+    if (covered || upTo >= b || from <= a || upTo >= from) {
+      *miss = true;
+      return false;
+    }
+  }
   double te, tx;
   int crossed[2];
   if (!certainCrossings(l1, dl, nf, m, te, tx, nearDiagonal, crossed) || !firstCrossingInSegment(te, tx, t))
@@ -418,17 +442,20 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
 }
 
 /// tetraFirstHitIfCertain or convexFirstHitIfCertain, by the cell's type.
-/// face: as convexFirstHitIfCertain's (-1 for tetrahedra).
-inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t, int* face = nullptr) {
+/// face, miss: as convexFirstHitIfCertain's (-1 and false for tetrahedra).
+inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t, int* face = nullptr,
+                              bool* miss = nullptr) {
   const uint8_t type = cells.type(c);
   if (face) *face = -1;
+  if (miss) *miss = false;
   if (type == kTetra) return tetraFirstHitIfCertain(f, cells, c, t);
-  return convexFirstHitIfCertain(f, cells, c, t, face);
+  return convexFirstHitIfCertain(f, cells, c, t, face, miss);
 }
 
 /// What the ray queries ask of a candidate: segmentMayHitCell (kMiss: VTK cannot hit it at
-/// t <= tMax) and then firstHitIfCertain (kCertain, with t), the points of a tetrahedron read
-/// once for both. kAskVtk otherwise. The same answers as the two calls in turn.
+/// t <= tMax) and then, with wantCertain, firstHitIfCertain (kCertain, with t; kMiss where it
+/// proves that VTK reports no hit at all), the points of a tetrahedron read once for both.
+/// kAskVtk otherwise.
 enum class CellVerdict { kMiss, kAskVtk, kCertain };
 inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax, bool wantCertain,
                               double& t, int* face = nullptr) {
@@ -440,7 +467,10 @@ inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_
     if (verdict > 0) return wantCertain && tetraCertainHit(f, v, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
   }
   if (!segmentMayHitCell(f, cells, c, tMax)) return CellVerdict::kMiss;
-  return wantCertain && firstHitIfCertain(f, cells, c, t, face) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
+  if (!wantCertain) return CellVerdict::kAskVtk;
+  bool miss = false;
+  if (firstHitIfCertain(f, cells, c, t, face, &miss)) return CellVerdict::kCertain;
+  return miss ? CellVerdict::kMiss : CellVerdict::kAskVtk;
 }
 
 }  // namespace mtree
