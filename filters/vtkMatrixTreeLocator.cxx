@@ -17,6 +17,8 @@
 #include "vtkObjectFactory.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
+#include "vtkQuad.h"
+#include "vtkTriangle.h"
 #include "vtkSmartPointer.h"
 
 #include "mtree/builder.h"
@@ -260,17 +262,21 @@ public:
     alignas(16) static const uint8_t kFlip[48] = { 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0,
       0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff,
       0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff, 0, 0xff };
-    const uint8_t pat[6] = { qmax[0], static_cast<uint8_t>(255 - qmin[0]), qmax[1],
-      static_cast<uint8_t>(255 - qmin[1]), qmax[2], static_cast<uint8_t>(255 - qmin[2]) };
-    alignas(16) uint8_t t[48];
-    for (int i = 0; i < 8; ++i)
-    {
-      std::memcpy(t + 6 * i, pat, 6);
-    }
+    // The thresholds repeat the 6-byte pattern; the 8-byte words of the 48 start at bytes 0, 8,
+    // ... 40, i.e. at pattern offsets 0, 2, 4, 0, 2, 4. They are formed in registers: written
+    // to memory byte by byte and read back as vectors, they stalled on store forwarding.
+    const uint64_t p = uint64_t{ qmax[0] } | uint64_t{ static_cast<uint8_t>(255 - qmin[0]) } << 8 |
+      uint64_t{ qmax[1] } << 16 | uint64_t{ static_cast<uint8_t>(255 - qmin[1]) } << 24 |
+      uint64_t{ qmax[2] } << 32 | uint64_t{ static_cast<uint8_t>(255 - qmin[2]) } << 40;
+    const long long w0 = static_cast<long long>(p | p << 48);
+    const long long w2 = static_cast<long long>(p >> 16 | p << 32);
+    const long long w4 = static_cast<long long>(p >> 32 | p << 16);
+    this->Thr[0] = _mm_set_epi64x(w2, w0);
+    this->Thr[1] = _mm_set_epi64x(w0, w4);
+    this->Thr[2] = _mm_set_epi64x(w4, w2);
     for (int v = 0; v < 3; ++v)
     {
       this->Flip[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(kFlip + 16 * v));
-      this->Thr[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(t + 16 * v));
     }
 #endif
   }
@@ -321,13 +327,13 @@ private:
 constexpr double kTetraTolerance = 1e-3;
 
 // The point-location loop over the candidates [k, end) of leaf n, the leaf that
-// MatrixTree::leafFind gives for x: FindCell runs it from the leaf's first candidate, the OpenCL
-// backend from the candidate where the device stopped.
+// MatrixTree::leafFind gives for x (with the range it read): FindCell runs it from the leaf's
+// first candidate, the OpenCL backend from the candidate where the device stopped.
 vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3],
   const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights,
   bool engineEval)
 {
-  const MtLeafRange r = in.Tree.leafRange(n);
+  const MtLeafRange r = n.range; // leafFind's read of the leaf
   const uint32_t* ids = in.Tree.primitiveIndices().data();
   const uint8_t* boxes = in.LeafBoxes.data();
   // The leaf's boxes and its cell ids are two independent reads (usually cache misses): start
@@ -392,6 +398,74 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     }
   }
   return -1;
+}
+
+// vtkHexahedron::IntersectWithLine and vtkWedge::IntersectWithLine (VTK 9.1) for a segment whose
+// hit is certain to lie on face `face` (convexFirstHitIfCertain's face: every other face of the
+// cell is far from the line, so VTK's loop over the faces finds only this one, or this one
+// first): VTK's own vtkQuad or vtkTriangle IntersectWithLine on that face, its points set as the
+// cell sets them (the quad keeps the point ids vtkQuad's constructor gives it, as the cells' own
+// quads do: they only break ties between equal diagonals), and the face's pcoords (r, s) mapped
+// as the cell maps them in 9.1 (checked against the library by
+// tests/python/test_locator.py::test_ray_hit_values_are_vtks_own):
+//   hexahedron  face 0 (0, r, 0), 1 (1, r, 0), 2 (r, 0, s), 3 (r, 1, s), 4 (r, s, 0), 5 (r, s, 1);
+//   wedge       face 0 (r, s, 0), 1 (r, s, 1), 2 (s, 0, r), 3 (1 - s, s, r), 4 (0, s, r).
+// One face test instead of six (five). False if the face reports no hit (the caller asks the
+// cell), the type has no mapping here, or the VTK is not 9.1 (whose mappings these are).
+bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
+  double tol, double& t, double x[3], double pcoords[3], int& subId)
+{
+  const uint8_t type = cells.type(static_cast<size_t>(id));
+  const bool mapped = VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) &&
+    VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0) &&
+    (type == mtree::kHexahedron || type == mtree::kWedge);
+  if (!mapped)
+  {
+    return false;
+  }
+  static thread_local vtkSmartPointer<vtkQuad> quad = vtkSmartPointer<vtkQuad>::New();
+  static thread_local vtkSmartPointer<vtkTriangle> triangle = vtkSmartPointer<vtkTriangle>::New();
+  const mtree::CellTopology* topo = mtree::cellTopology(type);
+  const int n = topo->faceSize[face];
+  vtkCell* f = n == 4 ? static_cast<vtkCell*>(quad) : static_cast<vtkCell*>(triangle);
+  const uint32_t* pid = cells.cellPointIds(static_cast<size_t>(id));
+  for (int k = 0; k < n; ++k)
+  {
+    const mtree::Vec3 p = cells.point(pid[topo->face[face][k]]);
+    f->GetPoints()->SetPoint(k, p.x, p.y, p.z);
+  }
+  double pc[3];
+  if (!f->IntersectWithLine(p1, p2, tol, t, x, pc, subId))
+  {
+    return false;
+  }
+  const double r = pc[0], s = pc[1];
+  double out[3];
+  if (type == mtree::kHexahedron)
+  {
+    switch (face)
+    {
+      case 0: out[0] = 0.0, out[1] = r, out[2] = 0.0; break;
+      case 1: out[0] = 1.0, out[1] = r, out[2] = 0.0; break;
+      case 2: out[0] = r, out[1] = 0.0, out[2] = s; break;
+      case 3: out[0] = r, out[1] = 1.0, out[2] = s; break;
+      case 4: out[0] = r, out[1] = s, out[2] = 0.0; break;
+      default: out[0] = r, out[1] = s, out[2] = 1.0; break;
+    }
+  }
+  else
+  {
+    switch (face)
+    {
+      case 0: out[0] = r, out[1] = s, out[2] = 0.0; break;
+      case 1: out[0] = r, out[1] = s, out[2] = 1.0; break;
+      case 2: out[0] = s, out[1] = 0.0, out[2] = r; break;
+      case 3: out[0] = 1.0 - s, out[1] = s, out[2] = r; break;
+      default: out[0] = 0.0, out[1] = s, out[2] = r; break;
+    }
+  }
+  std::copy(out, out + 3, pcoords);
+  return true;
 }
 
 // The ray queries' first test of a leaf's candidates (tol = 0): the segment o + t d, t in
@@ -980,8 +1054,7 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
   {
     return -1;
   }
-  return ScanCandidates(
-    this->DataSet, in, x, n, in.Tree.leafRange(n).begin, cell, pcoords, weights, this->EngineCellEvaluation);
+  return ScanCandidates(this->DataSet, in, x, n, n.range.begin, cell, pcoords, weights, this->EngineCellEvaluation);
 }
 
 #if VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 2, 0)
@@ -1025,6 +1098,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     const bool deferCertain = pass == 0 && tol == 0.0;
     double deferredT = VTK_DOUBLE_MAX;
     vtkIdType deferredId = -1;
+    int deferredFace = -1; // the face holding its hit, where certain (CertainFaceHit)
     best = VTK_DOUBLE_MAX;
     bestId = -1;
     // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
@@ -1058,8 +1132,9 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       // Then the cell's points: most cells whose box the segment crosses are proved missed
       // (or hit only beyond the best t so far) without VTK (segment_filter.h).
       double tc;
+      int face = -1;
       const mtree::CellVerdict verdict =
-        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc);
+        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc, &face);
       if (verdict == mtree::CellVerdict::kMiss)
       {
         return;
@@ -1070,6 +1145,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         {
           deferredT = tc;
           deferredId = id;
+          deferredFace = face;
         }
         return;
       }
@@ -1136,7 +1212,11 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     }
     FillCell(this->DataSet, in, deferredId, cell);
     filled = deferredId;
-    if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
+    // A hexahedron or wedge whose hit face is known: VTK's test of that face alone gives its
+    // answer.
+    const bool faceHit =
+      deferredFace >= 0 && CertainFaceHit(in.Cells, deferredId, deferredFace, p1, p2, tol, tt, xx, pc, sid);
+    if (faceHit || cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))
     {
       if (bestId < 0 || tt < best)
       {

@@ -13,6 +13,8 @@
 // and all six grids, through FindCell), and made-up ones: twisted, sheared, collapsed, flat, tangled and
 // degenerate cells at scales 1e-12 and 1e12 and offsets of 1e12, and NaN points.
 // The split must also earn its keep: on the real grids the engine answers for nearly every pair.
+// Every pair runs with both Newton steps (SSE2, and AVX2 where the processor has it), which must
+// agree bit for bit.
 #include <gtest/gtest.h>
 
 #include <vtkCell.h>
@@ -60,12 +62,34 @@ constexpr double kValueTolerance = 1e-12;
 bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
 #endif
 
+/// evaluateLinearCell with the SSE2 Newton step, and with the AVX2 one where the processor has
+/// it: the two must give the same verdict and the same bits (also where they differ from VTK's,
+/// in a build that rounds differently). Returns the SSE2 answer.
+PointInCell evaluateEachIsa(uint8_t type, int n, const double* pts, const double x[3], double pc[3], double* w,
+                            const std::string& what) {
+  using mtree::cell_eval::NewtonIsa;
+  mtree::cell_eval::newtonIsa() = NewtonIsa::kSse2;
+  const PointInCell v = mtree::evaluateLinearCell(type, pts, x, pc, w);
+  if (mtree::cell_eval::haveAvx2()) {
+    double pc2[3] = {-7, -7, -7}, w2[8] = {-7, -7, -7, -7, -7, -7, -7, -7};
+    mtree::cell_eval::newtonIsa() = NewtonIsa::kAvx2;
+    const PointInCell v2 = mtree::evaluateLinearCell(type, pts, x, pc2, w2);
+    EXPECT_EQ(v, v2) << what << ": SSE2 and AVX2 verdicts differ";
+    if (v == PointInCell::kInside && v2 == PointInCell::kInside) {
+      for (int i = 0; i < 3; ++i) EXPECT_TRUE(sameBits(pc[i], pc2[i])) << what << ": SSE2 and AVX2 pcoords differ";
+      for (int k = 0; k < n; ++k) EXPECT_TRUE(sameBits(w[k], w2[k])) << what << ": SSE2 and AVX2 weights differ";
+    }
+  }
+  mtree::cell_eval::newtonIsa() = NewtonIsa::kAuto;
+  return v;
+}
+
 /// One (cell, point) pair: the engine's verdict against VTK's EvaluatePosition. `pts` are the
 /// engine's coordinates of the cell (3 per point), `cell` VTK's cell with the same points.
 void checkPair(vtkCell* cell, const double* pts, const double x[3], Tally& t, const std::string& what) {
   const int n = static_cast<int>(cell->GetNumberOfPoints());
   double pc[3] = {-7, -7, -7}, w[8] = {-7, -7, -7, -7, -7, -7, -7, -7};
-  const PointInCell v = mtree::evaluateLinearCell(static_cast<uint8_t>(cell->GetCellType()), pts, x, pc, w);
+  const PointInCell v = evaluateEachIsa(static_cast<uint8_t>(cell->GetCellType()), n, pts, x, pc, w, what);
   double cp[3], vpc[3], d2 = 0, vw[8];
   int sub = 0;
   const int ret = cell->EvaluatePosition(x, cp, sub, vpc, d2, vw);
@@ -443,6 +467,37 @@ TEST(CellEval, SimdColumnsEqualTheScalarLoop) {
     for (int c = 0; c < 4; ++c)
       for (int j = 0; j < 3; ++j) ASSERT_TRUE(sameBits(a[c][j], b[c][j])) << c << " " << j;
   }
+}
+
+TEST(CellEval, Avx2StepEqualsSse2Step) {
+  // The Newton step's determinants, four lanes against two, bit for bit, on random points,
+  // parametric positions and magnitudes (the shape functions of each Newton type).
+#ifdef MATRIXTREE_CELL_EVAL_ROUNDING_DIFFERS
+  GTEST_SKIP() << "the SSE2 step is contracted to FMA in this build";
+#endif
+  if (!mtree::cell_eval::haveAvx2()) GTEST_SKIP() << "no AVX2 on this processor";
+#if MTREE_CELL_EVAL_AVX2
+  using mtree::cell_eval::Avx2Step;
+  using mtree::cell_eval::Sse2Step;
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> U(-1, 1), E(-12, 12);
+  for (int rep = 0; rep < 2000; ++rep) {
+    double pts[24], x[3], pc[3];
+    for (double& v : pts) v = U(rng) * std::pow(10.0, E(rng));
+    for (double& v : x) v = U(rng) * std::pow(10.0, E(rng));
+    for (double& v : pc) v = 2 * U(rng);
+    double a[4], b[4];
+    Sse2Step::run<mtree::cell_eval::Hexahedron>(pts, x, pc, a);
+    Avx2Step::run<mtree::cell_eval::Hexahedron>(pts, x, pc, b);
+    ASSERT_EQ(std::memcmp(a, b, sizeof a), 0) << "hexahedron " << rep;
+    Sse2Step::run<mtree::cell_eval::Wedge>(pts, x, pc, a);
+    Avx2Step::run<mtree::cell_eval::Wedge>(pts, x, pc, b);
+    ASSERT_EQ(std::memcmp(a, b, sizeof a), 0) << "wedge " << rep;
+    Sse2Step::run<mtree::cell_eval::Pyramid>(pts, x, pc, a);
+    Avx2Step::run<mtree::cell_eval::Pyramid>(pts, x, pc, b);
+    ASSERT_EQ(std::memcmp(a, b, sizeof a), 0) << "pyramid " << rep;
+  }
+#endif
 }
 
 TEST(CellEval, OtherTypesAreLeftToVtk) {

@@ -430,3 +430,36 @@ def test_rays_equal_brute_force_vtk(grid):
             assert float(tc) == float(to)
     assert hits > n // 4
     assert mismatches == 0, bad[:5]
+
+
+@pytest.mark.parametrize("grid", ["brick_hex.su2", "disk_out_ref.ex2", "brick_prism.su2", "brick_pyra.su2"])
+def test_ray_hit_values_are_vtks_own(grid):
+    """At tol 0, a hit's t, x, pcoords and subId are exactly what VTK's IntersectWithLine of the
+    returned cell gives (bit for bit): the hexahedra and wedges whose hit face is certain are
+    answered by VTK's test of that one face (CertainFaceHit), and must not differ from the whole
+    cell's.
+    Segments of random directions and lengths from points inside the grid and around it, some
+    nearly parallel to a coordinate plane (grazing the faces of axis-aligned cells)."""
+    ds = matrixtree.read_grid(os.path.join(CFD, grid))
+    ours = build(vtkMatrixTreeLocator, ds)
+    b = np.array(ds.GetBounds()).reshape(3, 2)
+    diag = float(np.linalg.norm(b[:, 1] - b[:, 0]))
+    rng = np.random.default_rng(29)
+    gc, gc2 = vtkGenericCell(), vtkGenericCell()
+    n = 3000
+    hits = 0
+    for i in range(n):
+        p1 = random_points(ds, 1, seed=int(rng.integers(1 << 30)), grow=0.1 * (i % 2))[0]
+        u = rng.normal(size=3)
+        if i % 4 == 3:
+            u[rng.integers(3)] *= 1e-3
+        p2 = p1 + u / np.linalg.norm(u) * diag * (0.01, 0.1, 0.5)[i % 3]
+        t, x, pc, sub, cid = reference(0.0), [0.0] * 3, [0.0] * 3, reference(-7), reference(-1)
+        if not ours.IntersectWithLine(list(p1), list(p2), 0.0, t, x, pc, sub, cid, gc):
+            continue
+        hits += 1
+        ds.GetCell(int(cid), gc2)
+        t2, x2, pc2, sub2 = reference(0.0), [0.0] * 3, [0.0] * 3, reference(-7)
+        assert gc2.IntersectWithLine(list(p1), list(p2), 0.0, t2, x2, pc2, sub2)
+        assert (float(t), x, pc, int(sub)) == (float(t2), x2, pc2, int(sub2)), (i, list(p1), list(p2), int(cid))
+    assert hits > n // 2

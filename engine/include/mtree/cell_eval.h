@@ -3,7 +3,8 @@
 // same parametric conventions, the same start point, step rule, convergence and divergence tests
 // of the Newton iteration, the same acceptance tolerance per type, and the operations in VTK's
 // order, so that the parametric coordinates and interpolation weights are VTK's bit for bit (no
-// -ffast-math; the build uses no FMA contraction: CMakeLists.txt sets no -march).
+// -ffast-math; the build uses no FMA contraction: CMakeLists.txt sets no -march, and the AVX2
+// Newton step's target attribute adds AVX2 only, not FMA).
 //
 // VTK's rules (vtkTetra/vtkVoxel/vtkHexahedron/vtkWedge/vtkPyramid.cxx, 9.1):
 //   tetrahedron  Cramer's rule on the edges from point 0; det == 0 -> -1; inside when every
@@ -44,6 +45,12 @@
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+// The Newton step also has an AVX2 version (four sums per register), compiled for that ISA by a
+// target attribute and chosen at run time: the build itself sets no -march.
+#if defined(__GNUC__) && defined(__x86_64__)
+#define MTREE_CELL_EVAL_AVX2 1
+#include <immintrin.h>
 #endif
 
 namespace mtree {
@@ -309,11 +316,95 @@ inline void newtonColumns(const double* pts, const double* w, const double* d, d
 #endif
 }
 
+/// The numbers of one Newton step at pc as VTK computes them: out[0] = det(r, s, t), the
+/// Jacobian's determinant, and out[1..3] = det(f, s, t), det(r, f, t), det(r, s, f), the
+/// numerators of the step (f = X(pc) - x). Two sums per SSE2 register.
+struct Sse2Step {
+  template <class S>
+  static void run(const double* pts, const double x[3], const double pc[3], double out[4]) {
+    constexpr int N = S::N;
+    double w[N], d[3 * N];
+    S::functions(pc, w);
+    S::derivs(pc, d);
+    double fcol[3], rcol[3], scol[3], tcol[3];
+    newtonColumns<N>(pts, w, d, fcol, rcol, scol, tcol);
+    for (int i = 0; i < 3; ++i) fcol[i] -= x[i];
+    out[0] = det3(rcol, scol, tcol);
+    out[1] = det3(fcol, scol, tcol);
+    out[2] = det3(rcol, fcol, tcol);
+    out[3] = det3(rcol, scol, fcol);
+  }
+};
+
+#if MTREE_CELL_EVAL_AVX2
+/// Sse2Step with four lanes: per coordinate one register holds the sums (f, r, s, t), each lane
+/// VTK's multiply-then-add sequence over the points in order; then the four determinants run
+/// one per lane, each with det3's operations in det3's order (lane 0: (r, s, t), lane 1:
+/// (f, s, t), lane 2: (r, f, t), lane 3: (r, s, f)). Same bits as Sse2Step (AVX2 brings no FMA:
+/// that is a separate target feature, not enabled here).
+struct Avx2Step {
+  template <class S>
+  __attribute__((target("avx2"))) static void run(const double* pts, const double x[3], const double pc[3],
+                                                  double out[4]) {
+    constexpr int N = S::N;
+    double w[N], d[3 * N];
+    S::functions(pc, w);
+    S::derivs(pc, d);
+    __m256d ax = _mm256_setzero_pd(), ay = ax, az = ax;
+    for (int i = 0; i < N; ++i) {
+      const __m256d c = _mm256_set_pd(d[i + 2 * N], d[i + N], d[i], w[i]);
+      ax = _mm256_add_pd(ax, _mm256_mul_pd(_mm256_broadcast_sd(pts + 3 * i), c));
+      ay = _mm256_add_pd(ay, _mm256_mul_pd(_mm256_broadcast_sd(pts + 3 * i + 1), c));
+      az = _mm256_add_pd(az, _mm256_mul_pd(_mm256_broadcast_sd(pts + 3 * i + 2), c));
+    }
+    // f -= x (r - 0 is r, also for -0).
+    ax = _mm256_sub_pd(ax, _mm256_set_pd(0.0, 0.0, 0.0, x[0]));
+    ay = _mm256_sub_pd(ay, _mm256_set_pd(0.0, 0.0, 0.0, x[1]));
+    az = _mm256_sub_pd(az, _mm256_set_pd(0.0, 0.0, 0.0, x[2]));
+    // det3's columns per lane, from the lanes (f, r, s, t) = (0, 1, 2, 3): c1 = (r, f, r, r),
+    // c2 = (s, s, f, s), c3 = (t, t, t, f).
+    constexpr int k1 = 1 | 0 << 2 | 1 << 4 | 1 << 6, k2 = 2 | 2 << 2 | 0 << 4 | 2 << 6, k3 = 3 | 3 << 2 | 3 << 4 | 0 << 6;
+    const __m256d c1x = _mm256_permute4x64_pd(ax, k1), c1y = _mm256_permute4x64_pd(ay, k1),
+                  c1z = _mm256_permute4x64_pd(az, k1);
+    const __m256d c2x = _mm256_permute4x64_pd(ax, k2), c2y = _mm256_permute4x64_pd(ay, k2),
+                  c2z = _mm256_permute4x64_pd(az, k2);
+    const __m256d c3x = _mm256_permute4x64_pd(ax, k3), c3y = _mm256_permute4x64_pd(ay, k3),
+                  c3z = _mm256_permute4x64_pd(az, k3);
+    // c1[0] c2[1] c3[2] + c2[0] c3[1] c1[2] + c3[0] c1[1] c2[2] - c1[0] c3[1] c2[2]
+    //   - c2[0] c1[1] c3[2] - c3[0] c2[1] c1[2], left to right.
+    __m256d det = _mm256_mul_pd(_mm256_mul_pd(c1x, c2y), c3z);
+    det = _mm256_add_pd(det, _mm256_mul_pd(_mm256_mul_pd(c2x, c3y), c1z));
+    det = _mm256_add_pd(det, _mm256_mul_pd(_mm256_mul_pd(c3x, c1y), c2z));
+    det = _mm256_sub_pd(det, _mm256_mul_pd(_mm256_mul_pd(c1x, c3y), c2z));
+    det = _mm256_sub_pd(det, _mm256_mul_pd(_mm256_mul_pd(c2x, c1y), c3z));
+    det = _mm256_sub_pd(det, _mm256_mul_pd(_mm256_mul_pd(c3x, c2y), c1z));
+    _mm256_storeu_pd(out, det);
+  }
+};
+#endif
+
+/// Which Newton step newton() uses: kAuto takes AVX2 where the processor has it. Both give the
+/// same bits; the tests run each.
+enum class NewtonIsa { kAuto, kSse2, kAvx2 };
+inline NewtonIsa& newtonIsa() {
+  static NewtonIsa isa = NewtonIsa::kAuto;
+  return isa;
+}
+inline bool haveAvx2() {
+#if MTREE_CELL_EVAL_AVX2
+  // cpu_init: harmless after libgcc's own initialisation, needed if this runs before it.
+  static const bool ok = (__builtin_cpu_init(), __builtin_cpu_supports("avx2"));
+  return ok;
+#else
+  return false;
+#endif
+}
+
 /// VTK's Newton inversion x(pcoords) = x for the isoparametric cell `S` (points `pts`, 3 N
-/// doubles). pcoords and weights as VTK leaves them when the verdict is kInside; kOutside where
-/// VTK returns 0 or -1.
-template <class S>
-PointInCell newton(const double* pts, const double x[3], double pcoords[3], double* weights) {
+/// doubles), with the step numbers of `Step`. pcoords and weights as VTK leaves them when the
+/// verdict is kInside; kOutside where VTK returns 0 or -1.
+template <class S, class Step>
+inline PointInCell newtonWith(const double* pts, const double x[3], double pcoords[3], double* weights) {
   constexpr int N = S::N;
   // The cell's size: VTK's longest diagonal/edge, squared. VTK turns it into its determinant
   // tolerance, min(1e-20, 1e-5 L^3), which matters only when |det| < 1e-20; the conditioning
@@ -330,16 +421,12 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
 
   double params[3] = {S::kStart, S::kStart, S::kStart};
   double pc[3] = {S::kStart, S::kStart, S::kStart};
-  double w[N], d[3 * N];
   bool converged = false;
   double adet = 0;  // |det| of the last step
   for (int iteration = 0; !converged && iteration < 10; ++iteration) {
-    S::functions(pc, w);
-    S::derivs(pc, d);
-    double fcol[3], rcol[3], scol[3], tcol[3];
-    newtonColumns<N>(pts, w, d, fcol, rcol, scol, tcol);
-    for (int i = 0; i < 3; ++i) fcol[i] -= x[i];
-    const double det = det3(rcol, scol, tcol);
+    double step[4];
+    Step::template run<S>(pts, x, pc, step);
+    const double det = step[0];
     // Degenerate at this iterate, or NaN: VTK decides.
     if (!(det * det > minDet2)) return PointInCell::kAskVtk;
     // VTK's own test, |det| < min(1e-20, 1e-5 L^3) -> -1, can only fire below 1e-20 (tiny
@@ -351,9 +438,9 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
       if (!(std::fabs(std::fabs(det) - tol) > kDecisionMargin * tol)) return PointInCell::kAskVtk;
       if (std::fabs(det) < tol) return PointInCell::kOutside;
     }
-    pc[0] = params[0] - det3(fcol, scol, tcol) / det;
-    pc[1] = params[1] - det3(rcol, fcol, tcol) / det;
-    pc[2] = params[2] - det3(rcol, scol, fcol) / det;
+    pc[0] = params[0] - step[1] / det;
+    pc[1] = params[1] - step[2] / det;
+    pc[2] = params[2] - step[3] / det;
     adet = std::fabs(det);
     bool below[3];
     if (!stepIsClear(pc[0] - params[0], S::kConverged, kml2, adet, below[0]) ||
@@ -388,6 +475,26 @@ PointInCell newton(const double* pts, const double x[3], double pcoords[3], doub
     S::functions(pc, weights);
   }
   return v;
+}
+
+#if MTREE_CELL_EVAL_AVX2
+/// newtonWith<S, Avx2Step> compiled for AVX2 (flatten: the loop and its helpers are inlined
+/// here, so they are compiled for AVX2 too).
+template <class S>
+__attribute__((target("avx2"), flatten)) PointInCell newtonAvx2(const double* pts, const double x[3],
+                                                                double pcoords[3], double* weights) {
+  return newtonWith<S, Avx2Step>(pts, x, pcoords, weights);
+}
+#endif
+
+/// VTK's Newton inversion (newtonWith) with the step newtonIsa() selects.
+template <class S>
+inline PointInCell newton(const double* pts, const double x[3], double pcoords[3], double* weights) {
+#if MTREE_CELL_EVAL_AVX2
+  const NewtonIsa isa = newtonIsa();
+  if (isa != NewtonIsa::kSse2 && haveAvx2()) return newtonAvx2<S>(pts, x, pcoords, weights);
+#endif
+  return newtonWith<S, Sse2Step>(pts, x, pcoords, weights);
 }
 
 }  // namespace cell_eval

@@ -207,7 +207,7 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
 /// cell's own extra test, e.g. a quad's diagonals).
 template <class Veto>
 inline bool certainCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx,
-                             Veto&& veto) {
+                             Veto&& veto, int* faces = nullptr) {
   te = -std::numeric_limits<double>::infinity();
   tx = std::numeric_limits<double>::infinity();
   int ie = -1, ix = -1;
@@ -230,6 +230,7 @@ inline bool certainCrossings(const double* l1, const double* dl, int nf, double 
     if (!(std::fabs(l1[ic]) >= m) || !(std::fabs(l1[ic] + dl[ic]) >= m)) return false;
     if (veto(tc, ic)) return false;
   }
+  if (faces) faces[0] = ie, faces[1] = ix;
   return true;
 }
 
@@ -315,7 +316,25 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
 /// holds it well inside and the other well outside), neither crossing is near an end of the
 /// segment, and the cell is not flat. m is tetraFirstHitIfCertain's margin. A warped face, a
 /// non-convex or degenerate cell, and a segment that misses: false (VTK decides).
-inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+///
+/// face (optional): on true, the face (the topology's numbering, VTK's) that holds the hit, or
+/// -1. It is given only when the line crosses both the entry and the exit face at an angle:
+/// |cos| of the angle between the segment and either face's normal >= kSteepCrossing. Then no
+/// other face of the cell comes within m kSteepCrossing L of the line (a face j crossed at t_j
+/// before the entry lies outside the entry face's plane by (te - t_j) |dl_entry| L, and
+/// (te - t_j) |dl_j| >= m because the entry is m inside plane j; the same after the exit), so
+/// VTK's face tests, exact containment at tol 0, reject every face but the two crossed, and the
+/// other crossed face's t is not the first: VTK's hit is that face's, whatever the other faces.
+///
+/// miss (optional): set when the cell passes the planarity and convexity checks and the line,
+/// for t in [-1e-9, 1 + 1e-9], stays outside some face plane by m L (the function then returns
+/// false): every point of the segment is then m L from the convex cell and from each of its
+/// faces (VTK's triangles lie within round-off, planeEps L <= m L, of those planes), so none
+/// of VTK's exact (tol 0) face tests can accept a crossing: VTK reports no hit.
+constexpr double kSteepCrossing = 0.05;
+inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t,
+                                    int* face = nullptr, bool* miss = nullptr) {
+  if (miss) *miss = false;
   if (!f.valid || f.tol != 0) return false;
   const uint8_t type = cells.type(c);
   if (type != kHexahedron && type != kWedge && type != kPyramid) return false;
@@ -392,23 +411,55 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
     }
     return false;
   };
+  if (miss) {
+    // Outside plane i by m where l1[i] + t dl[i] <= -m: for t <= lo_i (dl > 0), t >= hi_i
+    // (dl < 0), everywhere or nowhere (dl == 0). Those sets cover [a, b] when one of them
+    // does, or when the last "t <=" set reaches the first "t >=" set.
+    const double a = -1e-9, b = 1 + 1e-9;
+    double upTo = -std::numeric_limits<double>::infinity(), from = std::numeric_limits<double>::infinity();
+    bool covered = false;
+    for (int i = 0; i < nf; ++i) {
+      if (dl[i] > 0) upTo = std::max(upTo, (-m - l1[i]) / dl[i]);
+      else if (dl[i] < 0) from = std::min(from, (-m - l1[i]) / dl[i]);
+      else covered = covered || l1[i] <= -m;
+    }
+    if (covered || upTo >= b || from <= a || upTo >= from) {
+      *miss = true;
+      return false;
+    }
+  }
   double te, tx;
-  return certainCrossings(l1, dl, nf, m, te, tx, nearDiagonal) && firstCrossingInSegment(te, tx, t);
+  int crossed[2];
+  if (!certainCrossings(l1, dl, nf, m, te, tx, nearDiagonal, crossed) || !firstCrossingInSegment(te, tx, t))
+    return false;
+  if (face) {
+    // |dl| = |cos| |d| / L; f.invLen = 1 / |d|.
+    const double steep = kSteepCrossing * invL;
+    const bool clear = std::fabs(dl[crossed[0]]) * f.invLen >= steep && std::fabs(dl[crossed[1]]) * f.invLen >= steep;
+    *face = clear ? (t == te ? crossed[0] : crossed[1]) : -1;
+  }
+  return true;
 }
 
 /// tetraFirstHitIfCertain or convexFirstHitIfCertain, by the cell's type.
-inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
+/// face, miss: as convexFirstHitIfCertain's (-1 and false for tetrahedra).
+inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t, int* face = nullptr,
+                              bool* miss = nullptr) {
   const uint8_t type = cells.type(c);
+  if (face) *face = -1;
+  if (miss) *miss = false;
   if (type == kTetra) return tetraFirstHitIfCertain(f, cells, c, t);
-  return convexFirstHitIfCertain(f, cells, c, t);
+  return convexFirstHitIfCertain(f, cells, c, t, face, miss);
 }
 
 /// What the ray queries ask of a candidate: segmentMayHitCell (kMiss: VTK cannot hit it at
-/// t <= tMax) and then firstHitIfCertain (kCertain, with t), the points of a tetrahedron read
-/// once for both. kAskVtk otherwise. The same answers as the two calls in turn.
+/// t <= tMax) and then, with wantCertain, firstHitIfCertain (kCertain, with t; kMiss where it
+/// proves that VTK reports no hit at all), the points of a tetrahedron read once for both.
+/// kAskVtk otherwise.
 enum class CellVerdict { kMiss, kAskVtk, kCertain };
 inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax, bool wantCertain,
-                              double& t) {
+                              double& t, int* face = nullptr) {
+  if (face) *face = -1;
   if (f.valid && cells.type(c) == kTetra && cells.numCellPoints(c) == 4) {
     const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
     const int verdict = tetraMayHit(f, v, tMax);
@@ -416,7 +467,10 @@ inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_
     if (verdict > 0) return wantCertain && tetraCertainHit(f, v, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
   }
   if (!segmentMayHitCell(f, cells, c, tMax)) return CellVerdict::kMiss;
-  return wantCertain && firstHitIfCertain(f, cells, c, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
+  if (!wantCertain) return CellVerdict::kAskVtk;
+  bool miss = false;
+  if (firstHitIfCertain(f, cells, c, t, face, &miss)) return CellVerdict::kCertain;
+  return miss ? CellVerdict::kMiss : CellVerdict::kAskVtk;
 }
 
 }  // namespace mtree
