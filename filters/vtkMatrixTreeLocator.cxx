@@ -253,6 +253,11 @@ public:
     this->Simd = n >= 8;
     if (!this->Simd)
     {
+      // Never read on this path; set so the compiler need not prove it (-Wmaybe-uninitialized).
+      for (int v = 0; v < 3; ++v)
+      {
+        this->Thr[v] = this->Flip[v] = _mm_setzero_si128();
+      }
       return;
     }
     // Eight boxes are 48 bytes, three 16-byte loads. A byte at offset p is field p % 6 of box
@@ -428,7 +433,7 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
   const mtree::CellTopology* topo = mtree::cellTopology(type);
   const int n = topo->faceSize[face];
   vtkCell* f = n == 4 ? static_cast<vtkCell*>(quad) : static_cast<vtkCell*>(triangle);
-  const uint32_t* pid = cells.cellPointIds(static_cast<size_t>(id));
+  const auto pid = cells.cellPointIds(static_cast<size_t>(id));
   for (int k = 0; k < n; ++k)
   {
     const mtree::Vec3 p = cells.point(pid[topo->face[face][k]]);
