@@ -391,37 +391,37 @@ class CellSet {
     computeBounds(threads);
   }
 
+  /// T with T's member-wise copies followed by T::rebind(): T's pointers into its own vectors
+  /// follow a copy (a moved vector keeps its buffer, so moves need no rebind).
+  template <class T>
+  struct Rebinding : T {
+    Rebinding() = default;
+    Rebinding(const Rebinding& o) : T(o) { T::rebind(); }
+    Rebinding& operator=(const Rebinding& o) {
+      T::operator=(o);
+      T::rebind();
+      return *this;
+    }
+    Rebinding(Rebinding&&) noexcept = default;
+    Rebinding& operator=(Rebinding&&) noexcept = default;
+  };
   /// The points: owned doubles (d), owned floats (f, when every given double was exactly a
   /// float), or the caller's (view); point() reads through dp or fp, which follow the owned
   /// arrays through copies and moves.
-  struct Points {
+  struct PointArrays {
     std::vector<double> d;
     std::vector<float> f;
     const double* dp = nullptr;
     const float* fp = nullptr;
     size_t n = 0;
     bool view = false;
-    Points() = default;
-    Points(const Points& o) : d(o.d), f(o.f), dp(o.dp), fp(o.fp), n(o.n), view(o.view) { rebind(); }
-    Points& operator=(const Points& o) {
-      d = o.d;
-      f = o.f;
-      dp = o.dp;
-      fp = o.fp;
-      n = o.n;
-      view = o.view;
-      rebind();
-      return *this;
-    }
-    // A moved vector keeps its buffer, so the pointers stay right.
-    Points(Points&&) noexcept = default;
-    Points& operator=(Points&&) noexcept = default;
     void rebind() {
       if (view) return;
       dp = d.empty() ? nullptr : d.data();
       fp = f.empty() ? nullptr : f.data();
     }
   };
+  using Points = Rebinding<PointArrays>;
   Points pts_;
   bool floatPoints_ = false;
   /// The cells: owned 32-bit offsets, connectivity and types, or the caller's arrays (view),
@@ -429,7 +429,7 @@ class CellSet {
   /// moves). Entry i of the offsets and connectivity is the word at i << shift (shift 1: the
   /// low word of a 64-bit entry). One type for all cells: types points at that type in a
   /// static table and typeMask is 0.
-  struct Cells {
+  struct CellData {
     std::vector<uint32_t> off, conn32;
     std::vector<uint8_t> own;
     const Word* off32 = nullptr;
@@ -440,26 +440,6 @@ class CellSet {
     size_t connSize = 0;
     int shift = 0;
     bool view = false;
-    Cells() = default;
-    Cells(const Cells& o) { *this = o; }
-    Cells& operator=(const Cells& o) {
-      off = o.off;
-      conn32 = o.conn32;
-      own = o.own;
-      off32 = o.off32;
-      conn = o.conn;
-      types = o.types;
-      typeMask = o.typeMask;
-      n = o.n;
-      connSize = o.connSize;
-      shift = o.shift;
-      view = o.view;
-      rebind();
-      return *this;
-    }
-    // A moved vector keeps its buffer, so the pointers stay right.
-    Cells(Cells&&) noexcept = default;
-    Cells& operator=(Cells&&) noexcept = default;
     /// Points the readers at the owned arrays that are in use.
     void rebind() {
       if (!view) {
@@ -469,6 +449,7 @@ class CellSet {
       if (typeMask != 0 && !own.empty()) types = own.data();
     }
   };
+  using Cells = Rebinding<CellData>;
   Cells cells_;
   int64_t uniform_ = -1;  // >= 0: every cell has this many points (owned offsets are released)
   std::vector<float> box_;  // 6 per cell, until releaseBounds()
