@@ -149,16 +149,17 @@ struct HasVertices<L, std::void_t<decltype(std::declval<const L&>().vertices(std
     : std::true_type {};
 
 /// Two threads over [0, n) from both ends, inside a parallel region: thread 0 takes chunks of
-/// `chunk` primitives from the front and runs body(i) ascending over each, thread 1 takes them
-/// from the back and runs body(i) descending, until the chunks meet (`left` holds the number of
-/// chunks, ceil(n / chunk), on entry). Each thread sees one contiguous run of primitives, and
-/// a team of one takes every chunk from the front.
+/// kBothEndsChunk primitives from the front and runs body(i) ascending over each, thread 1 takes
+/// them from the back and runs body(i) descending, until the chunks meet (`taken` counts the
+/// chunks handed out, 0 on entry). Each thread sees one contiguous run of primitives, and a team
+/// of one takes every chunk from the front.
+constexpr int64_t kBothEndsChunk = 512;
 template <class F>
-void fromBothEnds(int64_t n, int64_t chunk, std::atomic<int64_t>& left, F&& body) {
-  const int64_t chunks = (n + chunk - 1) / chunk;
+void fromBothEnds(int64_t n, std::atomic<int64_t>& taken, F&& body) {
+  const int64_t chunks = (n + kBothEndsChunk - 1) / kBothEndsChunk;
   const bool back = omp_get_thread_num() == 1;
-  for (int64_t k = 0; left.fetch_sub(1, std::memory_order_relaxed) > 0; ++k) {
-    const int64_t b = (back ? chunks - 1 - k : k) * chunk, e = std::min(n, b + chunk);
+  for (int64_t k = 0; taken.fetch_add(1, std::memory_order_relaxed) < chunks; ++k) {
+    const int64_t b = (back ? chunks - 1 - k : k) * kBothEndsChunk, e = std::min(n, b + kBothEndsChunk);
     if (back) {
       for (int64_t i = e - 1; i >= b; --i) body(i);
     } else {
@@ -524,9 +525,9 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     if (exact) masks[i] = mask;
   };
   if (bothEnds) {
-    std::atomic<int64_t> left{(n + 511) / 512};
+    std::atomic<int64_t> taken{0};
 #pragma omp parallel num_threads(2)
-    detail::fromBothEnds(n, 512, left, countMark);
+    detail::fromBothEnds(n, taken, countMark);
   } else {
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
     for (int64_t i = 0; i < n; ++i) countMark(i);
@@ -724,7 +725,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     constexpr size_t axisBytes = Bytes / 3;
     // Per-axis parts of a cell's candidate range, kept for ranges up to this many leaves per axis.
     constexpr int kAxisTable = 32;
-    std::atomic<int64_t> left{(n + 511) / 512};
+    std::atomic<int64_t> taken{0};  // fromBothEnds' chunks
 #pragma omp parallel num_threads(threads)
     {
       auto f = fn;  // one copy per thread
@@ -770,7 +771,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
         });
       };
       if (bothEnds) {
-        detail::fromBothEnds(n, 512, left, scatterOne);
+        detail::fromBothEnds(n, taken, scatterOne);
       } else {
 #pragma omp for schedule(dynamic, 512)
         for (int64_t i = 0; i < n; ++i) scatterOne(i);
