@@ -405,6 +405,19 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   return -1;
 }
 
+// The cell types of a polygon-only vtkPolyData's nc cells from its offsets: 3 points a
+// triangle, 4 a quad; other sizes are asked of the data set.
+template <class I>
+void PolygonTypes(vtkDataSet* ds, const I* offsets, vtkIdType nc, std::vector<uint8_t>& types)
+{
+  types.resize(static_cast<size_t>(nc));
+  for (vtkIdType c = 0; c < nc; ++c)
+  {
+    const auto n = offsets[c + 1] - offsets[c];
+    types[c] = static_cast<uint8_t>(n == 3 ? VTK_TRIANGLE : (n == 4 ? VTK_QUAD : ds->GetCellType(c)));
+  }
+}
+
 // vtkHexahedron::IntersectWithLine and vtkWedge::IntersectWithLine (VTK 9.1) for a segment whose
 // hit is certain to lie on face `face` (convexFirstHitIfCertain's face: every other face of the
 // cell is far from the line, so VTK's loop over the faces finds only this one, or this one
@@ -832,15 +845,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
         cellView.types = ug->GetCellTypesArray()->GetPointer(0);
         return;
       }
-      // vtkPolyData's types of polygons: 3 points a triangle, 4 a quad; other sizes are asked.
-      const auto* o = off->GetPointer(0);
-      cellView.typeCopy.resize(static_cast<size_t>(nc));
-      for (vtkIdType c = 0; c < nc; ++c)
-      {
-        const auto n = o[c + 1] - o[c];
-        cellView.typeCopy[c] =
-          static_cast<uint8_t>(n == 3 ? VTK_TRIANGLE : (n == 4 ? VTK_QUAD : ds->GetCellType(c)));
-      }
+      PolygonTypes(ds, off->GetPointer(0), nc, cellView.typeCopy);
     };
     if (ca->IsStorage64Bit())
     {
@@ -900,12 +905,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     }
     if (!ug)
     {
-      // vtkPolyData's types of polygons: 3 points a triangle, 4 a quad; other sizes are asked.
-      for (vtkIdType c = 0; c < nc; ++c)
-      {
-        const uint32_t n = offsets[c + 1] - offsets[c];
-        types[c] = static_cast<uint8_t>(n == 3 ? VTK_TRIANGLE : (n == 4 ? VTK_QUAD : ds->GetCellType(c)));
-      }
+      PolygonTypes(ds, offsets.data(), nc, types);
     }
   }
   else
