@@ -12,7 +12,7 @@ is read with matrixtree.read_mesh, as bench/locators.py does (a triangle vtkPoly
 else with matrixtree.read_grid. --locator (repeatable) keeps only the named configurations
 (matrix-octree, matrix-kdtree, matrix-octree-bbox). Every locator is built N times
 (default 3, FreeSearchStructure in between) with --threads build threads (default 0: the
-locator's own rule, one per 32768 cells); every phase of GetBuildPhases() and the total are
+locator's own rule, one per 1024 cells); every phase of GetBuildPhases() and the total are
 the median over the N builds, as is vtkStaticCellLocator's build (--stat min: the fastest of
 the N instead, per phase; on a loaded machine a multi-threaded build waits for its second thread
 at every parallel region, and the minimum drops most of those waits). The 1-minute load average

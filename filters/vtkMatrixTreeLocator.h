@@ -143,7 +143,7 @@ public:
   ///@{
   /**
    * OpenMP threads for the build and the batched queries (0, default: all for queries; for the
-   * build one per 32768 cells, up to all).
+   * build one per 1024 cells, up to all).
    */
   vtkSetClampMacro(NumberOfThreads, int, 0, 4096);
   vtkGetMacro(NumberOfThreads, int);
