@@ -229,21 +229,66 @@ void CellSet::computeBounds(int threads) {
   box_.resize(static_cast<size_t>(n) * 6);
   const int nt = resolveThreads(threads);
   std::vector<Vec3> ext(static_cast<size_t>(nt), Vec3(0, 0, 0));
+  std::vector<Box> total(static_cast<size_t>(nt));
+  // Types whose bounds are their points' (a table, voxels, pixels); the others are padded (boxOf).
+  bool plain[256];
+  for (int t = 0; t < 256; ++t) plain[t] = cellTopology(uint8_t(t)) || t == kVoxel || t == kPixel;
+  // Cells [b, e) with points of type T: the points' min and max read straight from the arrays
+  // (boxOf's per-point checks hoisted), rounded outwards as boxOf rounds them: float points need
+  // no rounding (their min and max are floats). Empty and padded cells go through boxOf.
+  auto run = [&](auto* pts, int64_t b, int64_t e, Vec3& m, Box& tot) {
+    constexpr bool isFloat = std::is_same_v<std::remove_const_t<std::remove_pointer_t<decltype(pts)>>, float>;
+    const int shift = cells_.shift;
+    for (int64_t c = b; c < e; ++c) {
+      float* f = &box_[6 * static_cast<size_t>(c)];
+      const int64_t np = numCellPoints(size_t(c));
+      if (np > 0 && plain[type(size_t(c))]) {
+        const Word* id = cells_.conn + (firstPoint(size_t(c)) << shift);
+        const auto* p0 = pts + 3 * size_t(id[0]);
+        double lo[3] = {double(p0[0]), double(p0[1]), double(p0[2])}, hi[3] = {lo[0], lo[1], lo[2]};
+        for (int64_t k = 1; k < np; ++k) {
+          const auto* p = pts + 3 * size_t(id[size_t(k) << shift]);
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], double(p[a]));
+            hi[a] = std::max(hi[a], double(p[a]));
+          }
+        }
+        for (int a = 0; a < 3; ++a) {
+          if constexpr (isFloat) {
+            f[2 * a] = static_cast<float>(lo[a]);
+            f[2 * a + 1] = static_cast<float>(hi[a]);
+          } else {
+            f[2 * a] = roundOut(lo[a], -1);
+            f[2 * a + 1] = roundOut(hi[a], +1);
+          }
+        }
+      } else {
+        boxOf(static_cast<size_t>(c), f);
+      }
+      // Empty cells (no points) are inf/-inf: no extent, and nothing added to the total.
+      for (int a = 0; a < 3; ++a)
+        if (f[2 * a] <= f[2 * a + 1]) m[a] = std::max(m[a], double(f[2 * a + 1]) - double(f[2 * a]));
+      Box cb;
+      cb.lo = Vec3(f[0], f[2], f[4]);
+      cb.hi = Vec3(f[1], f[3], f[5]);
+      tot.extend(cb);
+    }
+  };
 #pragma omp parallel num_threads(nt)
   {
     Vec3 m(0, 0, 0);
-#pragma omp for schedule(static)
-    for (int64_t c = 0; c < n; ++c) {
-      float* f = &box_[6 * static_cast<size_t>(c)];
-      boxOf(static_cast<size_t>(c), f);
-      // Empty cells (no points) are inf/-inf: no extent.
-      for (int a = 0; a < 3; ++a)
-        if (f[2 * a] <= f[2 * a + 1]) m[a] = std::max(m[a], double(f[2 * a + 1]) - double(f[2 * a]));
-    }
-    ext[static_cast<size_t>(omp_get_thread_num())] = m;
+    Box tot;
+    const int th = omp_get_thread_num(), team = omp_get_num_threads();
+    const int64_t b = n * th / team, e = n * (th + 1) / team;
+    if (floatPoints_) run(pts_.fp, b, e, m, tot);
+    else run(pts_.dp, b, e, m, tot);
+    ext[static_cast<size_t>(th)] = m;
+    total[static_cast<size_t>(th)] = tot;
   }
   maxExt_ = Vec3(0, 0, 0);
   for (const Vec3& e : ext) maxExt_ = vmax(maxExt_, e);
+  total_ = Box{};
+  for (const Box& b : total) total_.extend(b);
 }
 
 }  // namespace mtree

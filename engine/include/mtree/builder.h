@@ -148,6 +148,28 @@ struct HasVertices<L, std::void_t<decltype(std::declval<const L&>().vertices(std
                                   decltype(std::declval<const L&>().tester(Vec3(), std::declval<const Vec3*>(), 0))>>
     : std::true_type {};
 
+/// Primitive sets that keep the union of their bounds (prims.totalBounds(), the union of every
+/// prims.bounds(i)): the setup takes it as the root box instead of a pass over the primitives.
+template <class P, class = void>
+struct HasTotalBounds : std::false_type {};
+template <class P>
+struct HasTotalBounds<P, std::void_t<decltype(std::declval<const P&>().totalBounds())>> : std::true_type {};
+
+/// f(x, y, z) for each set bit b of `mask`, ascending, where b numbers the candidates of the box
+/// [lo, lo + (w0, w1, *)) x fastest, then y, then z (w0 x w1 x w2 <= 64). The quotients by w0
+/// and w1 are (b * ceil(2^16 / w)) >> 16, exact for b < 64 and w <= 64 (the error stays below
+/// 64 / 2^16 < 1 / w).
+template <class F>
+inline void forEachBit(uint64_t mask, const int lo[3], int w0, int w1, F&& f) {
+  const uint32_t m0 = (65536u + uint32_t(w0) - 1) / uint32_t(w0), m1 = (65536u + uint32_t(w1) - 1) / uint32_t(w1);
+  while (mask) {
+    const uint32_t b = static_cast<uint32_t>(__builtin_ctzll(mask));
+    mask &= mask - 1;
+    const uint32_t row = (b * m0) >> 16, z = (row * m1) >> 16;
+    f(lo[0] + int(b - row * uint32_t(w0)), lo[1] + int(row - z * uint32_t(w1)), lo[2] + int(z));
+  }
+}
+
 /// Two threads over [0, n) from both ends, inside a parallel region: thread 0 takes chunks of
 /// kBothEndsChunk primitives from the front and runs body(i) ascending over each, thread 1 takes
 /// them from the back and runs body(i) descending, until the chunks meet (`taken` counts the
@@ -287,7 +309,9 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
 
   // ---- setup: root box, height, level shapes --------------------------------------------------
   Box root;
-  {
+  if constexpr (detail::HasTotalBounds<Prims>::value) {
+    root = prims.totalBounds();
+  } else {
     std::vector<Box> partial(threads);
 #pragma omp parallel num_threads(lightThreads(n))
     {

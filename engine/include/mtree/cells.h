@@ -208,6 +208,9 @@ class CellSet {
   }
   /// Largest extent along each axis of the cached bounds.
   Vec3 maxExtent() const { return maxExt_; }
+  /// The union of every cell's bounds() (computed with them): the builder's root box without a
+  /// pass of its own.
+  Box totalBounds() const { return total_; }
 
   void setAxes(CellAxes a) { axes_ = a; }
   CellAxes axes() const { return axes_; }
@@ -454,6 +457,7 @@ class CellSet {
   int64_t uniform_ = -1;  // >= 0: every cell has this many points (owned offsets are released)
   std::vector<float> box_;  // 6 per cell, until releaseBounds()
   Vec3 maxExt_;
+  Box total_;
   CellAxes axes_ = CellAxes::Faces;
 };
 
