@@ -565,11 +565,18 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   // The overlapped leaves of primitive i (local data `prim`), in the order of the count pass,
   // from its bit mask: f(x, y, z) per leaf. Same decision rule as the count pass; beyond the 64
   // masked candidates the test is repeated (only for the largest primitives).
-  auto forEachLeaf = [&](int64_t i, const auto& prim, auto&& f) {
-    int lo[3], hi[3];
-    cellRange(prim.bounds(), lo, hi);
-    uint32_t cand = 0;
+  // forEachLeafIn: the same over the candidate range [lo, hi] the caller has computed. Up to 64
+  // candidates, the mask's set bits are walked (forEachBit) instead of every candidate with a
+  // branch on its bit (coin flips on tetrahedra).
+  auto forEachLeafIn = [&](int64_t i, const auto& prim, const int lo[3], const int hi[3], auto&& f) {
+    const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
+    const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
     const uint64_t mask = exact ? masks[i] : ~uint64_t{0};
+    if (numCand <= 64) {
+      detail::forEachBit(numCand == 64 ? mask : mask & ((uint64_t{1} << numCand) - 1), lo, w0, w1, f);
+      return;
+    }
+    uint32_t cand = 0;
     const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
     const bool test = exact && thin < 2;
     const bool big = test && uint64_t(hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) > 64;
@@ -587,6 +594,11 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     } else {
       emit([&](int, int, int) { return !test; });
     }
+  };
+  auto forEachLeaf = [&](int64_t i, const auto& prim, auto&& f) {
+    int lo[3], hi[3];
+    cellRange(prim.bounds(), lo, hi);
+    forEachLeafIn(i, prim, lo, hi, f);
   };
 
   std::vector<uint32_t>& values = scratch.values;
@@ -780,7 +792,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
             for (int a = 0; a < 3; ++a)
               for (int c = lo[a]; c <= hi[a]; ++c)
                 f.axis(table[a][c - lo[a]], prim, a, org[a] + c * leafSize[a], org[a] + (c + 1) * leafSize[a]);
-            forEachLeaf(i, prim, [&](int x, int y, int z) {
+            forEachLeafIn(i, prim, lo, hi, [&](int x, int y, int z) {
               uint8_t* o = out + size_t(takeSlot(x, y, z)) * Bytes;
               std::memcpy(o, table[0][x - lo[0]], axisBytes);
               std::memcpy(o + axisBytes, table[1][y - lo[1]], axisBytes);

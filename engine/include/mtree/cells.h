@@ -526,12 +526,9 @@ struct LeafBoxQuantizer {
   /// three axes' bytes to each reference (see detail::HasAxisData); the same bytes as operator().
   void axis(uint8_t* q, const CellSet::Local& c, int a, double lo, double hi) {
     startCell(c);
-    const double w = hi - lo;
-    if (w != width[a]) {
-      width[a] = w;
-      scale[a] = 255.0 / w;
-    }
-    detail::quantizeLeafAxis(c.box.lo[a], c.box.hi[a], pad, lo, scale[a], q);
+    // The division every time: consecutive leaves' widths differ by round-off often enough
+    // that a branch on a cached width was mispredicted more than a division costs.
+    detail::quantizeLeafAxis(c.box.lo[a], c.box.hi[a], pad, lo, 255.0 / (hi - lo), q);
   }
 
   void operator()(uint8_t* q, const CellSet::Local& c, const Box& leaf) {
