@@ -518,7 +518,12 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       // it saved fewer dot products than it cost.
       const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
       const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
-      Vec3 v[8];
+      // Uninitialised (a Vec3 array would be zeroed per cell): vertices() writes what is read.
+      union Points {
+        Points() {}
+        Vec3 at[8];
+      } pts;
+      Vec3* const v = pts.at;
       const int nv = prim.vertices(v);
       uint64_t known = 0;
       if (numCand <= uint64_t(nv)) {
