@@ -182,29 +182,26 @@ void CellSet::keepFloatPointsIfExact() {
 }
 
 namespace {
-// std::nextafter(f, -inf) for a finite f, without the libm call (one per bound of every cell
-// whose coordinates are not floats: most of the cached bounds' cost on double grids): the
-// float below a positive one has the bit pattern one lower, below a negative one one higher,
-// and below either zero is the negative smallest subnormal.
-inline float nextFloatDown(float f) {
-  uint32_t u;
-  std::memcpy(&u, &f, sizeof u);
-  if (f == 0) u = 0x80000001u;
-  else if (f > 0) --u;
-  else ++u;
-  std::memcpy(&f, &u, sizeof f);
-  return f;
-}
-
-// The float nearest x on the side of `dir` (-1: not above x, +1: not below x).
+// The float nearest x on the side of `dir` (-1: not above x, +1: not below x): the nearest
+// float, moved one step outwards (std::nextafter towards -inf or +inf) when it lies on the wrong
+// side of x, with bit arithmetic and no branch on whether the step is needed (about every other
+// bound of a grid with double coordinates: as a branch, a coin flip). One step down is the bit
+// pattern minus one for a positive float, plus one for a negative one (up: the opposite); from
+// either zero it is the smallest subnormal of x's sign (the only case with a branch: rare).
 inline float roundOut(double x, int dir) {
   const double big = std::numeric_limits<float>::max();
   const float inf = std::numeric_limits<float>::infinity();
   if (x > big) return dir < 0 ? std::numeric_limits<float>::max() : inf;
   if (x < -big) return dir < 0 ? -inf : -std::numeric_limits<float>::max();
   float f = static_cast<float>(x);
-  if (dir < 0 && static_cast<double>(f) > x) f = nextFloatDown(f);
-  if (dir > 0 && static_cast<double>(f) < x) f = -nextFloatDown(-f);
+  const double d = static_cast<double>(f);
+  const uint32_t step = dir < 0 ? uint32_t(d > x) : uint32_t(d < x);
+  uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  const uint32_t neg = u >> 31, zero = uint32_t((u << 1) == 0);
+  u += step * (dir < 0 ? 2 * neg - 1 : 1 - 2 * neg);
+  if (__builtin_expect((step & zero) != 0, 0)) u = dir < 0 ? 0x80000001u : 0x00000001u;
+  std::memcpy(&f, &u, sizeof f);
   return f;
 }
 }  // namespace
