@@ -252,19 +252,21 @@ int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, dou
   auto meanCandidates = [&](int h) {
     const std::array<int, 3> ld = levelShapes(opt.kind, ext, h)[h];
     // Per axis once, not per sample (ldexp and the division were most of this loop).
-    double inv[3];
-    int hiCell[3];
+    double inv[3], top[3];
     for (int a = 0; a < 3; ++a) {
       inv[a] = std::ldexp(1.0, ld[a]) / ext[a];
-      hiCell[a] = (1 << ld[a]) - 1;
+      top[a] = double((1 << ld[a]) - 1);
     }
-    // cellIndexNonNegative: cellIndex with a lower bound of 0 without a floor call per bound.
+    // cellIndexNonNegative(x, 0, top) as a clamp in doubles and a truncation: the same index for
+    // every x (NaN and negatives give 0), without a floor call or a branch per bound.
+    auto index = [](double x, double hi) { return static_cast<int>(std::min(std::max(0.0, x), hi)); };
+    const double o[3] = {root.lo.x, root.lo.y, root.lo.z};
     double sum = 0;
     for (const Box& b : sample) {
       double c = 1;
+      const double bl[3] = {b.lo.x, b.lo.y, b.lo.z}, bh[3] = {b.hi.x, b.hi.y, b.hi.z};
       for (int a = 0; a < 3; ++a)
-        c *= cellIndexNonNegative((b.hi[a] - root.lo[a]) * inv[a], 0, hiCell[a]) -
-             cellIndexNonNegative((b.lo[a] - root.lo[a]) * inv[a], 0, hiCell[a]) + 1;
+        c *= index((bh[a] - o[a]) * inv[a], top[a]) - index((bl[a] - o[a]) * inv[a], top[a]) + 1;
       sum += c;
     }
     return sum / static_cast<double>(sample.size());
