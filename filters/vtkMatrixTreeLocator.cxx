@@ -1181,6 +1181,12 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     in.Tree.traverseRay(
       o, d, 0.0, 1.0,
       [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit) {
+        // The leaf's ids are read (for the survivors) only after its boxes are tested: asked for
+        // now, the two cache misses overlap.
+        for (uint32_t k = 0; k < count; k += 16)
+        {
+          __builtin_prefetch(ids + k);
+        }
         LeafSegmentFilter::Candidate* cand = stackBuf;
         if (count > 256)
         {
@@ -1200,7 +1206,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         {
           // The survivors are known ahead: their point ids, then their points, are fetched
           // a few candidates early (random reads that otherwise stall each test in turn).
-          for (int j = 0; j < std::min(nc, 4); ++j)
+          for (int j = 0; j < std::min(nc, 16); ++j)
           {
             in.Cells.prefetchPointIds(ids[cand[j].k]);
           }
@@ -1210,9 +1216,9 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
             {
               break; // sorted: the rest enter their boxes in this leaf later still
             }
-            if (j + 4 < nc)
+            if (j + 16 < nc)
             {
-              in.Cells.prefetchPointIds(ids[cand[j + 4].k]);
+              in.Cells.prefetchPointIds(ids[cand[j + 16].k]);
             }
             if (j + 2 < nc)
             {
