@@ -418,25 +418,26 @@ void PolygonTypes(vtkDataSet* ds, const I* offsets, vtkIdType nc, std::vector<ui
   }
 }
 
-// vtkHexahedron::IntersectWithLine and vtkWedge::IntersectWithLine (VTK 9.1) for a segment whose
-// hit is certain to lie on face `face` (convexFirstHitIfCertain's face: every other face of the
-// cell is far from the line, so VTK's loop over the faces finds only this one, or this one
-// first): VTK's own vtkQuad or vtkTriangle IntersectWithLine on that face, its points set as the
-// cell sets them (the quad keeps the point ids vtkQuad's constructor gives it, as the cells' own
-// quads do: they only break ties between equal diagonals), and the face's pcoords (r, s) mapped
-// as the cell maps them in 9.1 (checked against the library by
-// tests/python/test_locator.py::test_ray_hit_values_are_vtks_own):
+// vtkHexahedron, vtkWedge and vtkTetra::IntersectWithLine (VTK 9.1) for a segment whose hit is
+// certain to lie on face `face` (convexFirstHitIfCertain's or tetraCertainHit's face: every other
+// face of the cell is far from the line, so VTK's loop over the faces finds only this one, or
+// this one first): VTK's own vtkQuad or vtkTriangle IntersectWithLine on that face, its points
+// set as the cell sets them (the quad keeps the point ids vtkQuad's constructor gives it, as the
+// cells' own quads do: they only break ties between equal diagonals), and the face's pcoords
+// (r, s, and the triangle's third) mapped as the cell maps them in 9.1 (checked against the
+// library by tests/python/test_locator.py::test_ray_hit_values_are_vtks_own):
 //   hexahedron  face 0 (0, r, 0), 1 (1, r, 0), 2 (r, 0, s), 3 (r, 1, s), 4 (r, s, 0), 5 (r, s, 1);
-//   wedge       face 0 (r, s, 0), 1 (r, s, 1), 2 (s, 0, r), 3 (1 - s, s, r), 4 (0, s, r).
-// One face test instead of six (five). False if the face reports no hit (the caller asks the
-// cell), the type has no mapping here, or the VTK is not 9.1 (whose mappings these are).
+//   wedge       face 0 (r, s, 0), 1 (r, s, 1), 2 (s, 0, r), 3 (1 - s, s, r), 4 (0, s, r);
+//   tetrahedron face 0 (r, s, 0), 1 (0, s, 0), 2 (r, 0, 0), 3 (r, s, third).
+// One face test instead of six (five, four). False if the face reports no hit (the caller asks
+// the cell), the type has no mapping here, or the VTK is not 9.1 (whose mappings these are).
 bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
   double tol, double& t, double x[3], double pcoords[3], int& subId)
 {
   const uint8_t type = cells.type(static_cast<size_t>(id));
   const bool mapped = VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) &&
     VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0) &&
-    (type == mtree::kHexahedron || type == mtree::kWedge);
+    (type == mtree::kHexahedron || type == mtree::kWedge || type == mtree::kTetra);
   if (!mapped)
   {
     return false;
@@ -469,6 +470,16 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
       case 3: out[0] = r, out[1] = 1.0, out[2] = s; break;
       case 4: out[0] = r, out[1] = s, out[2] = 0.0; break;
       default: out[0] = r, out[1] = s, out[2] = 1.0; break;
+    }
+  }
+  else if (type == mtree::kTetra)
+  {
+    switch (face)
+    {
+      case 0: out[0] = r, out[1] = s, out[2] = 0.0; break;
+      case 1: out[0] = 0.0, out[1] = s, out[2] = 0.0; break;
+      case 2: out[0] = r, out[1] = 0.0, out[2] = 0.0; break;
+      default: out[0] = r, out[1] = s, out[2] = pc[2]; break;
     }
   }
   else
@@ -1167,9 +1178,26 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         subId = sid;
       }
     };
+    const uint32_t* prims = in.Tree.primitiveIndices().data();
     in.Tree.traverseRay(
       o, d, 0.0, 1.0,
       [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit) {
+        // The leaf's ids (read for the survivors only after its boxes are tested) and its boxes
+        // are asked for as soon as the leaf is reached: their cache misses overlap each other
+        // and the box test's set-up.
+        for (uint32_t k = 0; k < count; k += 16)
+        {
+          __builtin_prefetch(ids + k);
+        }
+        const size_t first = static_cast<size_t>(ids - prims);
+        if (6 * (first + count) <= in.LeafBoxes.size())
+        {
+          const uint8_t* lb = in.LeafBoxes.data() + 6 * first;
+          for (uint32_t b = 0; b < 6 * count; b += 64)
+          {
+            __builtin_prefetch(lb + b);
+          }
+        }
         LeafSegmentFilter::Candidate* cand = stackBuf;
         if (count > 256)
         {
@@ -1189,7 +1217,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         {
           // The survivors are known ahead: their point ids, then their points, are fetched
           // a few candidates early (random reads that otherwise stall each test in turn).
-          for (int j = 0; j < std::min(nc, 4); ++j)
+          for (int j = 0; j < std::min(nc, 16); ++j)
           {
             in.Cells.prefetchPointIds(ids[cand[j].k]);
           }
@@ -1199,9 +1227,9 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
             {
               break; // sorted: the rest enter their boxes in this leaf later still
             }
-            if (j + 4 < nc)
+            if (j + 16 < nc)
             {
-              in.Cells.prefetchPointIds(ids[cand[j + 4].k]);
+              in.Cells.prefetchPointIds(ids[cand[j + 16].k]);
             }
             if (j + 2 < nc)
             {
@@ -1219,8 +1247,12 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     }
     FillCell(this->DataSet, in, deferredId, cell);
     filled = deferredId;
-    // A hexahedron or wedge whose hit face is known: VTK's test of that face alone gives its
-    // answer.
+    // A hexahedron, wedge or tetrahedron whose hit face is known: VTK's test of that face alone
+    // gives its answer. (A tetrahedron's face is found here, for the winner only.)
+    if (deferredFace < 0 && tol == 0.0)
+    {
+      deferredFace = mtree::tetraCertainHitFace(frame, in.Cells, static_cast<size_t>(deferredId));
+    }
     const bool faceHit =
       deferredFace >= 0 && CertainFaceHit(in.Cells, deferredId, deferredFace, p1, p2, tol, tt, xx, pc, sid);
     if (faceHit || cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid))

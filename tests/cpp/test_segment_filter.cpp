@@ -25,6 +25,8 @@
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
 #include <vtkSmartPointer.h>
+#include <vtkTetra.h>
+#include <vtkTriangle.h>
 #include <vtkUnstructuredGrid.h>
 
 #include <array>
@@ -398,6 +400,76 @@ TEST(SegmentFilter, ConvexCellsCertainHitsAreVtks) {
           EXPECT_GT(tally.polyCertain, 0.25 * tally.polyHits) << tally.polyHits;
         }
       }
+}
+
+// tetraCertainHitFace: where it names a face, vtkTetra::IntersectWithLine at tol 0 finds its hit
+// on that face alone: the same t and x as vtkTriangle's test of the face (its points in
+// vtkTetra's order), and the tetrahedron's pcoords are the face's mapped as VTK 9.1 maps them.
+// Random tetrahedra (some thin), segments from inside and outside, a third of them nearly
+// parallel to a face (the cases the steepness conditions exclude), at extreme coordinates.
+TEST(SegmentFilter, TetraCertainFaceIsVtks) {
+  static constexpr int kFaces[4][3] = {{0, 1, 3}, {1, 2, 3}, {2, 0, 3}, {0, 2, 1}};
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  vtkNew<vtkTetra> tet;
+  vtkNew<vtkTriangle> tri;
+  int faced = 0, certain = 0;
+  for (double scale : {1.0, 1e-9, 1e9})
+    for (double off : {0.0, 1e3, -1e8})
+      for (int it = 0; it < 3000; ++it) {
+        double v[4][3];
+        for (auto& p : v)
+          for (double& c : p) c = U(rng);
+        if (it % 5 == 0)
+          for (double& c : v[3]) c = 0.02 * c;  // thin
+        for (auto& p : v)
+          for (double& c : p) c = c * scale + off;
+        std::vector<double> pts(&v[0][0], &v[0][0] + 12);
+        std::vector<uint32_t> offsets = {0, 4}, conn = {0, 1, 2, 3};
+        std::vector<uint8_t> types = {VTK_TETRA};
+        const mtree::CellSet cells(std::move(pts), std::move(offsets), std::move(conn), std::move(types), 1);
+        double a[3], b[3], dir[3];
+        const double w[4] = {std::fabs(U(rng)), std::fabs(U(rng)), std::fabs(U(rng)), std::fabs(U(rng))};
+        const double ws = w[0] + w[1] + w[2] + w[3];
+        for (int k = 0; k < 3; ++k) {
+          a[k] = (v[0][k] * w[0] + v[1][k] * w[1] + v[2][k] * w[2] + v[3][k] * w[3]) / ws;  // inside
+          if (it % 2) a[k] += 0.8 * scale * U(rng);  // or not
+          dir[k] = U(rng) * scale;
+        }
+        if (it % 3 == 0) {
+          // Nearly parallel to face f: its edge direction plus a small normal component.
+          const int* f = kFaces[it % 4];
+          const double e1[3] = {v[f[1]][0] - v[f[0]][0], v[f[1]][1] - v[f[0]][1], v[f[1]][2] - v[f[0]][2]};
+          const double e2[3] = {v[f[2]][0] - v[f[0]][0], v[f[2]][1] - v[f[0]][1], v[f[2]][2] - v[f[0]][2]};
+          const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+          const double eps = (it % 9 == 0) ? 1e-3 : ((it % 9 == 3) ? 0.04 : 0.3);
+          const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+          const double en = std::sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
+          for (int k = 0; k < 3; ++k) dir[k] = e1[k] / en + eps * n[k] / nn * U(rng);
+          for (int k = 0; k < 3; ++k) dir[k] *= scale;
+        }
+        for (int k = 0; k < 3; ++k) b[k] = a[k] + 2.0 * dir[k];
+        const mtree::SegmentFrame frame(mtree::Vec3(a), mtree::Vec3(b), 0.0);
+        double tc;
+        if (!mtree::tetraFirstHitIfCertain(frame, cells, 0, tc)) continue;
+        ++certain;
+        const int face = mtree::tetraCertainHitFace(frame, cells, 0);
+        if (face < 0) continue;
+        ++faced;
+        for (int k = 0; k < 4; ++k) tet->GetPoints()->SetPoint(k, v[k]);
+        for (int k = 0; k < 3; ++k) tri->GetPoints()->SetPoint(k, v[kFaces[face][k]]);
+        double t1, x1[3], pc1[3], t2, x2[3], pc2[3];
+        int s1, s2;
+        ASSERT_TRUE(tet->IntersectWithLine(a, b, 0.0, t1, x1, pc1, s1)) << it;
+        ASSERT_TRUE(tri->IntersectWithLine(a, b, 0.0, t2, x2, pc2, s2)) << it;
+        ASSERT_EQ(t1, t2) << it << " face " << face;
+        for (int k = 0; k < 3; ++k) ASSERT_EQ(x1[k], x2[k]) << it;
+        const double mapped[4][3] = {{pc2[0], pc2[1], 0.0}, {0.0, pc2[1], 0.0}, {pc2[0], 0.0, 0.0}, {pc2[0], pc2[1], pc2[2]}};
+        for (int k = 0; k < 3; ++k) ASSERT_EQ(pc1[k], mapped[face][k]) << it << " face " << face;
+        ASSERT_EQ(s1, s2);
+      }
+  EXPECT_GT(faced, certain / 2) << certain;
+  EXPECT_GT(certain, 3000);
 }
 
 TEST(SegmentFilter, DegenerateInputNeverRejects) {

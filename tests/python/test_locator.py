@@ -432,12 +432,13 @@ def test_rays_equal_brute_force_vtk(grid):
     assert mismatches == 0, bad[:5]
 
 
-@pytest.mark.parametrize("grid", ["brick_hex.su2", "disk_out_ref.ex2", "brick_prism.su2", "brick_pyra.su2"])
+@pytest.mark.parametrize("grid", ["brick_hex.su2", "disk_out_ref.ex2", "brick_prism.su2", "brick_pyra.su2",
+                                  "brick_tets.su2", "pipe_flow_tets.vtu"])
 def test_ray_hit_values_are_vtks_own(grid):
     """At tol 0, a hit's t, x, pcoords and subId are exactly what VTK's IntersectWithLine of the
-    returned cell gives (bit for bit): the hexahedra and wedges whose hit face is certain are
-    answered by VTK's test of that one face (CertainFaceHit), and must not differ from the whole
-    cell's.
+    returned cell gives (bit for bit): the hexahedra, wedges and tetrahedra whose hit face is
+    certain are answered by VTK's test of that one face (CertainFaceHit), and must not differ
+    from the whole cell's.
     Segments of random directions and lengths from points inside the grid and around it, some
     nearly parallel to a coordinate plane (grazing the faces of axis-aligned cells)."""
     ds = matrixtree.read_grid(os.path.join(CFD, grid))

@@ -248,6 +248,10 @@ inline bool firstCrossingInSegment(double te, double tx, double& t) {
   return false;
 }
 
+/// |cos| of the angle between the segment and a crossed face's normal above which the face that
+/// holds a certain hit is reported (tetraCertainHit, convexFirstHitIfCertain).
+constexpr double kSteepCrossing = 0.05;
+
 /// Where vtkTetra::IntersectWithLine(p1, p2, tol = 0, ...) reports its hit, when that is
 /// certain from the engine's copy of the cell. VTK's answer for a tetrahedron is the smallest t in
 /// [0, 1] at which the segment crosses one of its four triangles. With barycentric coordinates
@@ -259,15 +263,38 @@ inline bool firstCrossingInSegment(double te, double tx, double& t) {
 /// this computation and of VTK's. Returns false when not certain (VTK must decide) or when the
 /// segment misses: misses are the rejection test's business. On true, t is the hit's parameter
 /// (equal to VTK's up to round-off).
-inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t);
+inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t, int* face = nullptr);
 inline bool tetraFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t) {
   if (!f.valid || f.tol != 0 || cells.type(c) != kTetra || cells.numCellPoints(c) != 4) return false;
   const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
   return tetraCertainHit(f, v, t);
 }
 
+/// For a tetrahedron c whose hit tetraFirstHitIfCertain finds certain: tetraCertainHit's face
+/// (the face that holds the hit), or -1.
+inline int tetraCertainHitFace(const SegmentFrame& f, const CellSet& cells, size_t c) {
+  if (!f.valid || f.tol != 0 || cells.type(c) != kTetra || cells.numCellPoints(c) != 4) return -1;
+  const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
+  double t;
+  int face = -1;
+  return tetraCertainHit(f, v, t, &face) ? face : -1;
+}
+
 /// tetraFirstHitIfCertain from the tetrahedron's four points (VTK's order).
-inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
+///
+/// face (optional): on true, the face (vtkTetra's numbering: {0,1,3}, {1,2,3}, {2,0,3}, {0,2,1})
+/// that holds the hit, or -1. It is given when the line crosses the entry and the exit face at
+/// |cos| >= kSteepCrossing to their normals, the other two at |cos| >= 1e-3 (no plane nearly
+/// parallel to the line, where VTK's t would be ill-conditioned), eps mag <= 1e-9 h and
+/// m kSteepCrossing h >= 64 eps mag, h the smallest height. Then VTK's four triangle tests
+/// accept no other face at a t up to the hit's: a face g crossed after the hit is crossed
+/// m h_g / |cos_g| further along the line (at the hit g's coordinate is >= m; it changes by
+/// |cos_g| / h_g per unit of length), where VTK's crossings err by about eps mag / |cos_g|; a
+/// face g crossed before the entry is crossed outside the entry face's plane by at least
+/// m h_g |cos_entry| / |cos_g| >= m kSteepCrossing h_g (with the exit as the hit, also before
+/// t = 0 by m h_entry / |cos_entry|), far beyond the round-off of VTK's triangle test.
+inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t, int* face) {
+  if (face) *face = -1;
   if (!f.valid || f.tol != 0) return false;
   const Vec3 v0 = v[0], v1 = v[1], v2 = v[2], v3 = v[3];
   const Vec3 a = v1 - v0, b = v2 - v0, e = v3 - v0;
@@ -301,8 +328,29 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
   // terms: the face's coordinate at p1 and at p2 is not near 0). No crossing in [0, 1]: a miss,
   // left to the rejection test and VTK.
   double te, tx;
-  return certainCrossings(l1, dl, 4, m, te, tx, [](double, int) { return false; }) &&
-         firstCrossingInSegment(te, tx, t);
+  int crossed[2];
+  if (!certainCrossings(l1, dl, 4, m, te, tx, [](double, int) { return false; }, crossed) ||
+      !firstCrossingInSegment(te, tx, t))
+    return false;
+  if (face) {
+    // |grad lambda_k| = 1 / h_k; |cos_k| = |dl_k| h_k / |d|.
+    const Vec3 g1 = be * inv, g2 = cross(e, a) * inv, g3 = cross(a, b) * inv;
+    const Vec3 g0 = (g1 + g2 + g3) * -1.0;
+    const double h[4] = {1.0 / norm(g0), 1.0 / norm(g1), 1.0 / norm(g2), 1.0 / norm(g3)};
+    const double hmin = std::min({h[0], h[1], h[2], h[3]});
+    double mag = f.mag;
+    for (int k = 0; k < 4; ++k) mag = std::max({mag, std::fabs(v[k].x), std::fabs(v[k].y), std::fabs(v[k].z)});
+    bool clear = std::isfinite(hmin) && std::numeric_limits<double>::epsilon() * mag <= 1e-9 * hmin &&
+                 m * kSteepCrossing * hmin >= 64 * std::numeric_limits<double>::epsilon() * mag;
+    for (int k = 0; k < 4; ++k) {
+      const double cosk = std::fabs(dl[k]) * h[k] * f.invLen;
+      clear = clear && cosk >= (k == crossed[0] || k == crossed[1] ? kSteepCrossing : 1e-3);
+    }
+    // lambda_k vanishes on the face opposite point k: faces 1, 2, 0, 3.
+    static constexpr int kFaceOf[4] = {1, 2, 0, 3};
+    if (clear) *face = kFaceOf[t == te ? crossed[0] : crossed[1]];
+  }
+  return true;
 }
 
 /// The same for a hexahedron, wedge or pyramid whose faces are planar (to round-off) and which is
@@ -331,7 +379,6 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t) {
 /// false): every point of the segment is then m L from the convex cell and from each of its
 /// faces (VTK's triangles lie within round-off, planeEps L <= m L, of those planes), so none
 /// of VTK's exact (tol 0) face tests can accept a crossing: VTK reports no hit.
-constexpr double kSteepCrossing = 0.05;
 inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t,
                                     int* face = nullptr, bool* miss = nullptr) {
   if (miss) *miss = false;
