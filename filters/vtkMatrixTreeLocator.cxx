@@ -364,14 +364,29 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   }
   const ByteBoxTest boxTest(qf, qc, r.end - k);
   // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
-  // ids, so the first that contains the point is still the answer), then their point ids and
-  // points are prefetched ahead of the tests: each test's reads are random, and without the hint
-  // they stall one after another.
-  constexpr uint32_t kChunk = 16;
+  // ids, so the first that contains the point is still the answer), a whole leaf of up to kChunk
+  // references at once, then the point ids of up to kIdsAhead of them are prefetched, then the
+  // points of up to kAhead: each level of these random reads overlaps across the candidates,
+  // where one candidate at a time they stall one after another (the containing cell is as often
+  // the last candidate as the first).
+  constexpr uint32_t kChunk = 128;
+  constexpr int kAhead = 16, kIdsAhead = 24;
   uint32_t cand[kChunk];
   while (k < r.end)
   {
     const uint32_t stop = std::min<uint32_t>(r.end, k + kChunk);
+    // Every line of the chunk's boxes and ids (the first of each is on its way already).
+    for (const char* b = reinterpret_cast<const char*>(boxes + 6 * static_cast<size_t>(k)) + 64,
+                    *e = reinterpret_cast<const char*>(boxes + 6 * static_cast<size_t>(stop));
+         b < e; b += 64)
+    {
+      __builtin_prefetch(b);
+    }
+    for (const char* b = reinterpret_cast<const char*>(ids + k) + 64, *e = reinterpret_cast<const char*>(ids + stop);
+         b < e; b += 64)
+    {
+      __builtin_prefetch(b);
+    }
     const int nc = boxTest.gather(boxes, k, stop, cand);
     for (int j = 0; j < nc; ++j)
     {
@@ -382,19 +397,23 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     // only tetrahedra (judged by the first candidate) benefit: the cheap pre-test waits, while a
     // larger cell's Newton steps in VTK hide the loads, and there the hints measured slower.
     const bool ahead = nc > 1 && (engineEval || in.Cells.type(cand[0]) == mtree::kTetra);
-    for (int j = 0; ahead && j < std::min(nc, 4); ++j)
+    for (int j = 0, e = ahead ? std::min(nc, kIdsAhead) : 0; j < e; ++j)
     {
       in.Cells.prefetchPointIds(cand[j]);
     }
+    for (int j = 0, e = ahead ? std::min(nc, kAhead) : 0; j < e; ++j)
+    {
+      in.Cells.prefetchPoints(cand[j]);
+    }
     for (int j = 0; j < nc; ++j)
     {
-      if (ahead && j + 4 < nc)
+      if (ahead && j + kIdsAhead < nc)
       {
-        in.Cells.prefetchPointIds(cand[j + 4]);
+        in.Cells.prefetchPointIds(cand[j + kIdsAhead]);
       }
-      if (ahead && j + 2 < nc)
+      if (ahead && j + kAhead < nc)
       {
-        in.Cells.prefetchPoints(cand[j + 2]);
+        in.Cells.prefetchPoints(cand[j + kAhead]);
       }
       if (CellContains(ds, in, x, cand[j], cell, pcoords, weights, engineEval))
       {

@@ -519,11 +519,7 @@ inline PointInCell evaluateTetra(const double* pts, const double x[3], double pc
   }
   const double r = cell_eval::kConditionRatio;
   if (!(det * det > r * r * longest2 * longest2 * longest2) || !std::isfinite(det)) return PointInCell::kAskVtk;
-  double pc[3];
-  pc[0] = cell_eval::det3(rhs, c2, c3) / det;
-  pc[1] = cell_eval::det3(c1, rhs, c3) / det;
-  pc[2] = cell_eval::det3(c1, c2, rhs) / det;
-  const double p4 = 1.0 - pc[0] - pc[1] - pc[2];
+  const double n0 = cell_eval::det3(rhs, c2, c3), n1 = cell_eval::det3(c1, rhs, c3), n2 = cell_eval::det3(c1, c2, rhs);
   // The margin, as roundoff but local: VTK works on x - p0 and p_i - p0 (plain subtractions,
   // rounded the same way by any IEEE compiler), so the round-off that another compiler could
   // add is in the determinants of those differences: a few ulp of max(L, |x - p0|) L^2, over
@@ -541,6 +537,23 @@ inline PointInCell evaluateTetra(const double* pts, const double x[3], double pc
     return e > 0 && need2 <= e * e;
   };
   const double lo = -0.001, hi = 1.001, c = 1e-6, c4 = 3e-6;
+  // Most candidates are outside on one of pcoords 0-2: decided without the divisions. n_i is the
+  // value VTK divides by det, so s n_i < (lo - c - 1e-12) |det| (s the sign of det) puts the
+  // rounded quotient below lo - c (rounding moves it by ~1e-19 here), and above hi + c likewise:
+  // the cases where the test below says kOutside at clearance c.
+  {
+    const double s0 = det < 0 ? -n0 : n0, s1 = det < 0 ? -n1 : n1, s2 = det < 0 ? -n2 : n2;
+    const double below = (lo - c - 1e-12) * adet, above = (hi + c + 1e-12) * adet;
+    const bool out = (s0 < below) | (s0 > above) | (s1 < below) | (s1 > above) | (s2 < below) | (s2 > above);
+    if (out && clearBy(c)) {
+      return PointInCell::kOutside;
+    }
+  }
+  double pc[3];
+  pc[0] = n0 / det;
+  pc[1] = n1 / det;
+  pc[2] = n2 / det;
+  const double p4 = 1.0 - pc[0] - pc[1] - pc[2];
   PointInCell v = PointInCell::kAskVtk;
   if (pc[0] >= lo + c && pc[0] <= hi - c && pc[1] >= lo + c && pc[1] <= hi - c && pc[2] >= lo + c &&
       pc[2] <= hi - c && p4 >= lo + c4 && p4 <= hi - c4) {
