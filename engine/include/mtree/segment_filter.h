@@ -426,14 +426,25 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
   const double invL = 1.0 / L;
   double l1[6], dl[6];
   const int nf = topo->numFaces;
+  // The faces' normals and their scales first, every face's, so that the square roots and
+  // divisions overlap (the checks below wait on them).
+  Vec3 nrms[6];
+  double scale[6];
+  bool degenerate = false;
+  for (int i = 0; i < nf; ++i) {
+    const int* v = topo->face[i];
+    nrms[i] = topo->faceSize[i] == 4 ? cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[1]])
+                                     : cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
+    const double nn2 = dot(nrms[i], nrms[i]);
+    degenerate = degenerate || !(nn2 > 1e-12 * L * L * L * L);
+    // Unit normal scaled by 1 / L: dot products with it are distances in units of L.
+    scale[i] = invL / std::sqrt(nn2);
+  }
+  if (degenerate) return false;  // a degenerate face
   for (int i = 0; i < nf; ++i) {
     const int* v = topo->face[i];
     const bool quad = topo->faceSize[i] == 4;
-    Vec3 nrm = quad ? cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[1]]) : cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
-    const double nn2 = dot(nrm, nrm);
-    if (!(nn2 > 1e-12 * L * L * L * L)) return false;  // a degenerate face
-    // Unit normal scaled by 1 / L: dot products with it are distances in units of L.
-    nrm = nrm * (invL / std::sqrt(nn2));
+    Vec3 nrm = nrms[i] * scale[i];
     const Vec3 o = p[v[0]];
     // Planar (a quad's other points on the plane through v[0] to round-off; a triangle's are
     // by construction) and convex (every other point of the cell on one side, the inner
