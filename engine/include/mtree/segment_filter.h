@@ -379,6 +379,11 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t, i
 /// false): every point of the segment is then m L from the convex cell and from each of its
 /// faces (VTK's triangles lie within round-off, planeEps L <= m L, of those planes), so none
 /// of VTK's exact (tol 0) face tests can accept a crossing: VTK reports no hit.
+/// convexFirstHitIfCertain's test on the cell's points p (topo's count), their bounds lo, hi and
+/// largest coordinate magnitude vmag; f valid, f.tol == 0 and miss (if given) false on entry.
+inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* topo, const Vec3* p, Vec3 lo, Vec3 hi,
+                                    double vmag, double& t, int* face, bool* miss);
+
 inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t,
                                     int* face = nullptr, bool* miss = nullptr) {
   if (miss) *miss = false;
@@ -399,6 +404,12 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
     hi = vmax(hi, p[k]);
     vmag = std::max({vmag, std::fabs(p[k].x), std::fabs(p[k].y), std::fabs(p[k].z)});
   }
+  return convexCertainFromPoints(f, topo, p, lo, hi, vmag, t, face, miss);
+}
+
+inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* topo, const Vec3* p, Vec3 lo, Vec3 hi,
+                                    double vmag, double& t, int* face, bool* miss) {
+  const int n = topo->numPoints;
   const double L = norm(hi - lo);
   if (!(L > 0) || !std::isfinite(L)) return false;
   constexpr double eps = std::numeric_limits<double>::epsilon();
@@ -415,14 +426,25 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
   const double invL = 1.0 / L;
   double l1[6], dl[6];
   const int nf = topo->numFaces;
+  // The faces' normals and their scales first, every face's, so that the square roots and
+  // divisions overlap (the checks below wait on them).
+  Vec3 nrms[6];
+  double scale[6];
+  bool degenerate = false;
+  for (int i = 0; i < nf; ++i) {
+    const int* v = topo->face[i];
+    nrms[i] = topo->faceSize[i] == 4 ? cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[1]])
+                                     : cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
+    const double nn2 = dot(nrms[i], nrms[i]);
+    degenerate = degenerate || !(nn2 > 1e-12 * L * L * L * L);
+    // Unit normal scaled by 1 / L: dot products with it are distances in units of L.
+    scale[i] = invL / std::sqrt(nn2);
+  }
+  if (degenerate) return false;  // a degenerate face
   for (int i = 0; i < nf; ++i) {
     const int* v = topo->face[i];
     const bool quad = topo->faceSize[i] == 4;
-    Vec3 nrm = quad ? cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[1]]) : cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
-    const double nn2 = dot(nrm, nrm);
-    if (!(nn2 > 1e-12 * L * L * L * L)) return false;  // a degenerate face
-    // Unit normal scaled by 1 / L: dot products with it are distances in units of L.
-    nrm = nrm * (invL / std::sqrt(nn2));
+    Vec3 nrm = nrms[i] * scale[i];
     const Vec3 o = p[v[0]];
     // Planar (a quad's other points on the plane through v[0] to round-off; a triangle's are
     // by construction) and convex (every other point of the cell on one side, the inner
@@ -512,6 +534,44 @@ inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_
     const int verdict = tetraMayHit(f, v, tMax);
     if (verdict == 0) return CellVerdict::kMiss;
     if (verdict > 0) return wantCertain && tetraCertainHit(f, v, t) ? CellVerdict::kCertain : CellVerdict::kAskVtk;
+  }
+  if (wantCertain && f.valid && f.tol == 0) {
+    // Hexahedra, wedges and pyramids: segmentMayHitCell's ray-frame test and
+    // convexFirstHitIfCertain on one read of the points (the same arithmetic, the same verdicts).
+    const uint8_t type = cells.type(c);
+    const CellTopology* topo =
+        type == kHexahedron || type == kWedge || type == kPyramid ? cellTopology(type) : nullptr;
+    if (topo && cells.numCellPoints(c) == topo->numPoints) {
+      const int n = topo->numPoints;
+      Vec3 p[CellSet::kMaxLocalPoints];
+      double amin = std::numeric_limits<double>::infinity(), amax = -amin;
+      double bmin = amin, bmax = amax, smin = amin, smax = amax;
+      Vec3 lo(amin, amin, amin), hi(amax, amax, amax);
+      double vmag = 0;
+      for (int k = 0; k < n; ++k) {
+        const Vec3 v = p[k] = cells.cellPoint(c, k);
+        lo = vmin(lo, v);
+        hi = vmax(hi, v);
+        vmag = std::max({vmag, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+        const Vec3 q = v - f.p1;
+        const double a = dot(f.u, q), b = dot(f.w, q), s = dot(f.d, q) * f.invLen2;
+        amin = std::min(amin, a), amax = std::max(amax, a);
+        bmin = std::min(bmin, b), bmax = std::max(bmax, b);
+        smin = std::min(smin, s), smax = std::max(smax, s);
+      }
+      const Vec3 ext = hi - lo;
+      const double delta = 1e-3 * std::max({ext.x, ext.y, ext.z}) +
+                           64 * std::numeric_limits<double>::epsilon() * std::max(vmag, f.mag);
+      const double r = 2 * f.tol + delta;
+      if (std::isfinite(r)) {
+        if (amin > r || amax < -r || bmin > r || bmax < -r) return CellVerdict::kMiss;
+        const double rs = r * f.invLen;
+        if (smin - rs > std::min(tMax, 1.0) || smax + rs < 0) return CellVerdict::kMiss;
+      }
+      bool miss = false;
+      if (convexCertainFromPoints(f, topo, p, lo, hi, vmag, t, face, &miss)) return CellVerdict::kCertain;
+      return miss ? CellVerdict::kMiss : CellVerdict::kAskVtk;
+    }
   }
   if (!segmentMayHitCell(f, cells, c, tMax)) return CellVerdict::kMiss;
   if (!wantCertain) return CellVerdict::kAskVtk;
