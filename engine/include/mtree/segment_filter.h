@@ -106,6 +106,44 @@ inline int tetraMayHit(const SegmentFrame& f, const Vec3 v[4], double tMax) {
   return 1;
 }
 
+/// A cell's points in the segment's frame, for segmentMayHitCell's test and decideCell's fused
+/// path (one copy of the arithmetic, so both give the same verdicts): the extents across the line
+/// (a along u, b along w), along it (s, in units of t) and in space, and the largest coordinate.
+struct RayFrameExtent {
+  double amin = std::numeric_limits<double>::infinity(), amax = -amin;
+  double bmin = amin, bmax = amax, smin = amin, smax = amax;
+  Vec3 lo{amin, amin, amin}, hi{amax, amax, amax};
+  double vmag = 0;
+  /// Adds point v; a and b are its coordinates across the line.
+  void add(const SegmentFrame& f, const Vec3& v, double& a, double& b) {
+    lo = vmin(lo, v);
+    hi = vmax(hi, v);
+    vmag = std::max({vmag, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+    const Vec3 q = v - f.p1;
+    a = dot(f.u, q);
+    b = dot(f.w, q);
+    const double s = dot(f.d, q) * f.invLen2;
+    amin = std::min(amin, a), amax = std::max(amax, a);
+    bmin = std::min(bmin, b), bmax = std::max(bmax, b);
+    smin = std::min(smin, s), smax = std::max(smax, s);
+  }
+  /// The test's margin: twice the tolerance, 1e-3 of the points' extent and round-off (not finite
+  /// for non-finite points: then nothing is proven).
+  double radius(const SegmentFrame& f) const {
+    const Vec3 ext = hi - lo;
+    const double delta = 1e-3 * std::max({ext.x, ext.y, ext.z}) +
+                         64 * std::numeric_limits<double>::epsilon() * std::max(vmag, f.mag);
+    return 2 * f.tol + delta;
+  }
+  /// True when every point is more than r off the line on one side, or beyond the segment's
+  /// part [0, min(tMax, 1)] by more than r: the cell cannot be hit there.
+  bool outside(const SegmentFrame& f, double r, double tMax) const {
+    if (amin > r || amax < -r || bmin > r || bmax < -r) return true;
+    const double rs = r * f.invLen;  // r in units of t
+    return smin - rs > std::min(tMax, 1.0) || smax + rs < 0;
+  }
+};
+
 /// False only if vtkCell::IntersectWithLine(p1, p2, tol, t, ...) on cell c cannot return a hit
 /// with t <= tMax (see the header comment). True means "ask VTK".
 inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax) {
@@ -118,34 +156,21 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
     if (verdict >= 0) return verdict != 0;
     // Flat: the ray-frame test below may still prove a miss (its face planes ask VTK).
   }
-  double amin = std::numeric_limits<double>::infinity(), amax = -amin;
-  double bmin = amin, bmax = amax, smin = amin, smax = amax;
-  Vec3 lo(amin, amin, amin), hi(amax, amax, amax);
-  double vmag = 0;
+  RayFrameExtent rf;
   Vec3 tet[4];
   double pa[4] = {0, 0, 0, 0}, pb[4] = {0, 0, 0, 0};  // the first points in the ray frame
   for (int64_t k = 0; k < n; ++k) {
     const Vec3 v = cells.cellPoint(c, k);
     if (k < 4) tet[k] = v;
-    lo = vmin(lo, v);
-    hi = vmax(hi, v);
-    vmag = std::max({vmag, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
-    const Vec3 q = v - f.p1;
-    const double a = dot(f.u, q), b = dot(f.w, q), s = dot(f.d, q) * f.invLen2;
+    double a, b;
+    rf.add(f, v, a, b);
     if (k < 4) pa[k] = a, pb[k] = b;
-    amin = std::min(amin, a), amax = std::max(amax, a);
-    bmin = std::min(bmin, b), bmax = std::max(bmax, b);
-    smin = std::min(smin, s), smax = std::max(smax, s);
   }
-  const Vec3 ext = hi - lo;
-  const double delta = 1e-3 * std::max({ext.x, ext.y, ext.z}) +
-                       64 * std::numeric_limits<double>::epsilon() * std::max(vmag, f.mag);
-  const double r = 2 * f.tol + delta;
+  const double r = rf.radius(f);
   if (!(std::isfinite(r))) return true;
-  if (amin > r || amax < -r || bmin > r || bmax < -r) return false;
-  const double rs = r * f.invLen;  // r in units of t
+  if (rf.outside(f, r, tMax)) return false;
   const double tHiLimit = std::min(tMax, 1.0);
-  if (smin - rs > tHiLimit || smax + rs < 0) return false;
+  const Vec3 ext = rf.hi - rf.lo;
   if (cells.type(c) == kTriangle && n == 3) {
     // Both ends on the same side of the triangle's plane, further than r: a miss.
     const Vec3 nrm = cross(tet[1] - tet[0], tet[2] - tet[0]);
@@ -544,32 +569,15 @@ inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_
     if (topo && cells.numCellPoints(c) == topo->numPoints) {
       const int n = topo->numPoints;
       Vec3 p[CellSet::kMaxLocalPoints];
-      double amin = std::numeric_limits<double>::infinity(), amax = -amin;
-      double bmin = amin, bmax = amax, smin = amin, smax = amax;
-      Vec3 lo(amin, amin, amin), hi(amax, amax, amax);
-      double vmag = 0;
+      RayFrameExtent rf;
       for (int k = 0; k < n; ++k) {
-        const Vec3 v = p[k] = cells.cellPoint(c, k);
-        lo = vmin(lo, v);
-        hi = vmax(hi, v);
-        vmag = std::max({vmag, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
-        const Vec3 q = v - f.p1;
-        const double a = dot(f.u, q), b = dot(f.w, q), s = dot(f.d, q) * f.invLen2;
-        amin = std::min(amin, a), amax = std::max(amax, a);
-        bmin = std::min(bmin, b), bmax = std::max(bmax, b);
-        smin = std::min(smin, s), smax = std::max(smax, s);
+        double a, b;
+        rf.add(f, p[k] = cells.cellPoint(c, k), a, b);
       }
-      const Vec3 ext = hi - lo;
-      const double delta = 1e-3 * std::max({ext.x, ext.y, ext.z}) +
-                           64 * std::numeric_limits<double>::epsilon() * std::max(vmag, f.mag);
-      const double r = 2 * f.tol + delta;
-      if (std::isfinite(r)) {
-        if (amin > r || amax < -r || bmin > r || bmax < -r) return CellVerdict::kMiss;
-        const double rs = r * f.invLen;
-        if (smin - rs > std::min(tMax, 1.0) || smax + rs < 0) return CellVerdict::kMiss;
-      }
+      const double r = rf.radius(f);
+      if (std::isfinite(r) && rf.outside(f, r, tMax)) return CellVerdict::kMiss;
       bool miss = false;
-      if (convexCertainFromPoints(f, topo, p, lo, hi, vmag, t, face, &miss)) return CellVerdict::kCertain;
+      if (convexCertainFromPoints(f, topo, p, rf.lo, rf.hi, rf.vmag, t, face, &miss)) return CellVerdict::kCertain;
       return miss ? CellVerdict::kMiss : CellVerdict::kAskVtk;
     }
   }
