@@ -17,6 +17,23 @@ import matrixtree  # noqa: E402
 from matrixtree import scenes  # noqa: E402
 
 
+def check_build_dir(build_dir: str | None) -> None:
+    """Exits with a message unless matrixtree_vtk was imported from build_dir's python/ folder.
+
+    A build tree without python/matrixtree_vtk/__init__.py (a partial build) is skipped by
+    Python's import in favour of the package the .venv's .pth names: the benchmark would then
+    measure that other build's library without saying so."""
+    if not build_dir:
+        return
+    import matrixtree_vtk.MatrixTreeFilters as wrapped
+
+    want = os.path.realpath(os.path.join(build_dir, "python"))
+    got = os.path.realpath(wrapped.__file__)
+    if not got.startswith(want + os.sep):
+        raise SystemExit(f"--build-dir {build_dir}: matrixtree_vtk was imported from {got}, not from {want} "
+                         "(is it a full build, with python/matrixtree_vtk/__init__.py?)")
+
+
 def default_scene_paths() -> dict:
     """Every mesh in ../shared/data/meshes plus the Utah Hand and Ben scenes."""
     return scenes.real_scenes()

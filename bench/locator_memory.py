@@ -63,7 +63,8 @@ def main() -> int:
         sys.path.insert(0, os.path.join(os.path.abspath(bd), "python"))
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import numpy as np
-    from _common import table, write_json
+    from _common import check_build_dir, table, write_json
+    check_build_dir(bd)
     from locator_phases import read_any, static_bytes
     from matrixtree import scenes
     from matrixtree_vtk import vtkMatrixTreeLocator

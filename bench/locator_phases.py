@@ -101,7 +101,8 @@ def main() -> int:
     bd = a.build_dir or os.environ.get("MATRIXTREE_BUILD_DIR")
     if bd:  # before anything imports matrixtree_vtk
         sys.path.insert(0, os.path.join(os.path.abspath(bd), "python"))
-    from _common import table, write_json
+    from _common import check_build_dir, table, write_json
+    check_build_dir(bd)
     import matrixtree
     from matrixtree import scenes
     from matrixtree_vtk import vtkMatrixTreeLocator
