@@ -334,6 +334,17 @@ constexpr double kTetraTolerance = 1e-3;
 // The point-location loop over the candidates [k, end) of leaf n, the leaf that
 // MatrixTree::leafFind gives for x (with the range it read): FindCell runs it from the leaf's
 // first candidate, the OpenCL backend from the candidate where the device stopped.
+// Asks for the cache lines of [begin, end), in 64-byte steps from begin: a leaf's references
+// (ids, quantized boxes) are read at random, so their lines are requested together and their
+// misses overlap.
+inline void PrefetchLines(const void* begin, const void* end)
+{
+  for (const char *b = static_cast<const char*>(begin), *e = static_cast<const char*>(end); b < e; b += 64)
+  {
+    __builtin_prefetch(b);
+  }
+}
+
 vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3],
   const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights,
   bool engineEval)
@@ -376,17 +387,8 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   {
     const uint32_t stop = std::min<uint32_t>(r.end, k + kChunk);
     // Every line of the chunk's boxes and ids (the first of each is on its way already).
-    for (const char* b = reinterpret_cast<const char*>(boxes + 6 * static_cast<size_t>(k)) + 64,
-                    *e = reinterpret_cast<const char*>(boxes + 6 * static_cast<size_t>(stop));
-         b < e; b += 64)
-    {
-      __builtin_prefetch(b);
-    }
-    for (const char* b = reinterpret_cast<const char*>(ids + k) + 64, *e = reinterpret_cast<const char*>(ids + stop);
-         b < e; b += 64)
-    {
-      __builtin_prefetch(b);
-    }
+    PrefetchLines(boxes + 6 * static_cast<size_t>(k) + 64, boxes + 6 * static_cast<size_t>(stop));
+    PrefetchLines(reinterpret_cast<const char*>(ids + k) + 64, ids + stop);
     const int nc = boxTest.gather(boxes, k, stop, cand);
     for (int j = 0; j < nc; ++j)
     {
@@ -1204,18 +1206,12 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         // The leaf's ids (read for the survivors only after its boxes are tested) and its boxes
         // are asked for as soon as the leaf is reached: their cache misses overlap each other
         // and the box test's set-up.
-        for (uint32_t k = 0; k < count; k += 16)
-        {
-          __builtin_prefetch(ids + k);
-        }
+        PrefetchLines(ids, ids + count);
         const size_t first = static_cast<size_t>(ids - prims);
         if (6 * (first + count) <= in.LeafBoxes.size())
         {
           const uint8_t* lb = in.LeafBoxes.data() + 6 * first;
-          for (uint32_t b = 0; b < 6 * count; b += 64)
-          {
-            __builtin_prefetch(lb + b);
-          }
+          PrefetchLines(lb, lb + 6 * static_cast<size_t>(count));
         }
         LeafSegmentFilter::Candidate* cand = stackBuf;
         if (count > 256)
