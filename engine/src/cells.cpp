@@ -182,6 +182,11 @@ void CellSet::keepFloatPointsIfExact() {
 }
 
 namespace {
+// Cell types whose bounds are their points' (a table, voxels, pixels); other types' boxes are
+// padded (boxOf), their points not being their extent. One rule for boxOf and computeBounds'
+// direct loop.
+inline bool boundsArePoints(uint8_t t) { return cellTopology(t) || t == kVoxel || t == kPixel; }
+
 // The float nearest x on the side of `dir` (-1: not above x, +1: not below x): the nearest
 // float, moved one step outwards (std::nextafter towards -inf or +inf) when it lies on the wrong
 // side of x, with bit arithmetic and no branch on whether the step is needed (about every other
@@ -209,7 +214,7 @@ inline float roundOut(double x, int dir) {
 void CellSet::boxOf(size_t c, float f[6]) const {
   Box b = exactBounds(c);
   const uint8_t t = type(c);
-  if (!b.empty() && !cellTopology(t) && t != kVoxel && t != kPixel) {
+  if (!b.empty() && !boundsArePoints(t)) {
     const Vec3 e = b.extent();
     const double pad = 0.05 * std::max(e.x, std::max(e.y, e.z));
     b.lo = b.lo - Vec3(pad, pad, pad);
@@ -227,9 +232,9 @@ void CellSet::computeBounds(int threads) {
   const int nt = resolveThreads(threads);
   std::vector<Vec3> ext(static_cast<size_t>(nt), Vec3(0, 0, 0));
   std::vector<Box> total(static_cast<size_t>(nt));
-  // Types whose bounds are their points' (a table, voxels, pixels); the others are padded (boxOf).
+  // boundsArePoints per type, looked up once per cell.
   bool plain[256];
-  for (int t = 0; t < 256; ++t) plain[t] = cellTopology(uint8_t(t)) || t == kVoxel || t == kPixel;
+  for (int t = 0; t < 256; ++t) plain[t] = boundsArePoints(uint8_t(t));
   // Cells [b, e) with points of type T: the points' min and max read straight from the arrays
   // (boxOf's per-point checks hoisted), rounded outwards as boxOf rounds them: float points need
   // no rounding (their min and max are floats). Empty and padded cells go through boxOf.
