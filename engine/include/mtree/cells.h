@@ -302,10 +302,19 @@ class CellSet {
         t.r[t.n] = half.x * std::fabs(a.x) + half.y * std::fabs(a.y) + half.z * std::fabs(a.z);
         ++t.n;
       };
+      // A planar quad's two triangles have parallel normals, and parallel axes give the same
+      // verdict (the projections are the same up to scale): its second normal is added only when
+      // the face is warped. Leaving out an axis can only answer "overlap" more often, so the
+      // cut-off (the sine of the angle below 1e-9) only decides when a nearly flat face counts
+      // as flat, never whether the test stays conservative.
       for (int f = 0; f < topo->numFaces; ++f) {
         const int* v = topo->face[f];
-        add(cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]));
-        if (topo->faceSize[f] == 4) add(cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[0]]));
+        const Vec3 n0 = cross(p[v[1]] - p[v[0]], p[v[2]] - p[v[0]]);
+        add(n0);
+        if (topo->faceSize[f] == 4) {
+          const Vec3 n1 = cross(p[v[2]] - p[v[0]], p[v[3]] - p[v[0]]), c = cross(n0, n1);
+          if (dot(c, c) > 1e-18 * dot(n0, n0) * dot(n1, n1)) add(n1);
+        }
       }
       if (set->axes() == CellAxes::All) {
         for (int e = 0; e < topo->numEdges; ++e) {
