@@ -292,4 +292,57 @@ TEST(CellSet, ViewedCellArraysAreChecked) {
   EXPECT_THROW(make({1, 4}, {0, 1, 2, 3}), std::invalid_argument);   // first offset != 0
 }
 
+// The builder's separating-axis tester leaves out a quad's second triangle normal when it is
+// parallel to the first (a planar face): its verdicts must stay those of the full test
+// (Local::overlaps, every face normal) on parallelepipeds and prisms, whose faces are planar,
+// and on the same cells with their points moved (warped faces keep both normals). Boxes are
+// drawn around the cell's bounding box, as the builder's candidates are; both verdicts occur.
+TEST(CellSet, TesterLeavesOutOnlyParallelAxes) {
+  mtest::Rng rng(2026);
+  const int hexCorner[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  const int wedgeCorner[6][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {0, 1, 1}};
+  uint64_t tested = 0, separated = 0, differ = 0;
+  for (int warp = 0; warp < 2; ++warp)
+    for (int shape = 0; shape < 2; ++shape)
+      for (int cell = 0; cell < 200; ++cell) {
+        const bool hex = shape == 0;
+        const int n = hex ? 8 : 6;
+        const mtree::Vec3 o(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-5, 5));
+        const mtree::Vec3 u = rng.direction() * rng.uniform(0.2, 2), v = rng.direction() * rng.uniform(0.2, 2),
+                          w = rng.direction() * rng.uniform(0.2, 2);
+        std::vector<double> pts;
+        for (int k = 0; k < n; ++k) {
+          const int* c = hex ? hexCorner[k] : wedgeCorner[k];
+          mtree::Vec3 p = o + u * double(c[0]) + v * double(c[1]) + w * double(c[2]);
+          if (warp) p = p + rng.direction() * 0.1;
+          pts.insert(pts.end(), {p.x, p.y, p.z});
+        }
+        std::vector<uint32_t> conn(n);
+        for (int k = 0; k < n; ++k) conn[k] = uint32_t(k);
+        const CellSet cells(pts, std::vector<uint32_t>{0, uint32_t(n)}, conn,
+                            std::vector<uint8_t>{hex ? mtree::kHexahedron : mtree::kWedge});
+        const CellSet::Local local = cells.local(0);
+        const mtree::Box bb = local.bounds();
+        const mtree::Vec3 e = bb.extent();
+        for (int trial = 0; trial < 50; ++trial) {
+          const double size = std::max(e.x, std::max(e.y, e.z)) * rng.uniform(0.02, 0.5);
+          const mtree::Vec3 half(size, size * rng.uniform(0.5, 1), size * rng.uniform(0.5, 1));
+          mtree::Box grown = bb;
+          grown.lo = grown.lo - half;
+          grown.hi = grown.hi + half;
+          const mtree::Vec3 c = rng.inBox(grown);  // the box [c - half, c + half] meets bb
+          mtree::Box box;
+          box.lo = c - half;
+          box.hi = c + half;
+          const bool full = local.overlaps(box), fast = local.tester(half).overlaps(c);
+          ++tested;
+          separated += !full;
+          differ += full != fast;
+        }
+      }
+  EXPECT_EQ(differ, 0u) << "of " << tested;
+  EXPECT_GT(separated, tested / 10) << "the boxes must test separation too";
+  EXPECT_LT(separated, tested - tested / 10) << "and overlap";
+}
+
 }  // namespace
