@@ -62,7 +62,7 @@ struct vtkMatrixTreeLocatorInternals
   // 1e-3 of its largest extent, clipped to the leaf and quantized outwards to 1/255 of the
   // leaf (xlo xhi ylo yhi zlo zhi). Point location scans these sequentially instead of
   // fetching every candidate's bounds from a random place: 6 bytes per reference.
-  std::vector<uint8_t> LeafBoxes;
+  mtree::LargeVector<uint8_t> LeafBoxes;
   vtkDataSet* BuiltOn = nullptr; // the data set of the last build (compared, never dereferenced)
   std::string Phases; // "name ms; ..." of the last build, conversion and tree phases
   bool Valid = false;

@@ -38,7 +38,7 @@ class MatrixTreeBuilder<ocl::detail::DeviceTriangles> {
   static std::vector<Vec3>& cellSize(MatrixTree& t) { return t.cellSize_; }
   static std::vector<BlockSparseMatrix<uint8_t>>& inner(MatrixTree& t) { return t.inner_; }
   static BlockSparseMatrix<MtLeafRange>& leaves(MatrixTree& t) { return t.leaves_; }
-  static std::vector<uint32_t>& prims(MatrixTree& t) { return t.prims_; }
+  static LargeVector<uint32_t>& prims(MatrixTree& t) { return t.prims_; }
 };
 
 namespace ocl {
@@ -332,7 +332,7 @@ void Builder::build(const TriangleMesh& mesh, const BuildOptions& opt, MatrixTre
     run.read(S.marks, marks.data(), ptrCount, "leaf block marks");
     leaves.allocateMarked(marks.data(), threads);
     run.read(S.leafData, leaves.data().data(), sizeof(MtLeafRange) * leafEntries, "leaf ranges");
-    std::vector<uint32_t>& prims = Access::prims(tree);
+    LargeVector<uint32_t>& prims = Access::prims(tree);
     prims.resize(m);
     run.read(*values, prims.data(), sizeof(uint32_t) * m, "triangle indices");
     uint32_t leafCount = 0;

@@ -24,7 +24,7 @@ Context& CellLocator::context() const { return *ctx_; }
 bool CellLocator::uploaded() const { return st_->uploaded; }
 size_t CellLocator::deviceBytes() const { return st_->uploaded ? st_->bytes : 0; }
 
-void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const std::vector<uint8_t>& leafBoxes) {
+void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const LargeVector<uint8_t>& leafBoxes) {
   if (leafBoxes.size() != 6 * tree.primitiveIndices().size())
     throw std::invalid_argument("OpenCL CellLocator: leafBoxes must hold 6 bytes per primitive index (" +
                                 std::to_string(6 * tree.primitiveIndices().size()) + "), got " +
@@ -58,7 +58,7 @@ void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const std
     run.write(b, src, bytes, what);
     S.bytes += bytes;
   };
-  const std::vector<uint32_t>& prims = tree.primitiveIndices();
+  const LargeVector<uint32_t>& prims = tree.primitiveIndices();
   put(S.levels, flat.levels.data(), flat.levels.size() * sizeof(MtLevelDesc), "level descriptors");
   put(S.ptrs, flat.ptrs.data(), flat.ptrs.size() * sizeof(uint32_t), "pointer matrices");
   put(S.inner, flat.inner.data(), flat.inner.size(), "inner levels");

@@ -57,7 +57,7 @@ Context& Tracer::context() const { unavailable(); }
 
 CellLocator::CellLocator(std::shared_ptr<Context>) { unavailable(); }
 CellLocator::~CellLocator() = default;
-void CellLocator::upload(const MatrixTree&, const CellSet&, const std::vector<uint8_t>&) { unavailable(); }
+void CellLocator::upload(const MatrixTree&, const CellSet&, const LargeVector<uint8_t>&) { unavailable(); }
 bool CellLocator::uploaded() const { return false; }
 size_t CellLocator::deviceBytes() const { return 0; }
 void CellLocator::locate(const double*, size_t, double, uint32_t*, std::vector<KernelTiming>*) { unavailable(); }

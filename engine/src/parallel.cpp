@@ -66,8 +66,8 @@ uint64_t exclusiveScan(const uint8_t* in, uint32_t* out, size_t n, int threads) 
   return scanImpl(in, out, n, threads);
 }
 
-void radixSortPairs(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, int keyBits,
-                    int threads, std::vector<uint32_t>& tmpKeys, std::vector<uint32_t>& tmpValues) {
+void radixSortPairs(LargeVector<uint32_t>& keys, LargeVector<uint32_t>& values, int keyBits, int threads,
+                    LargeVector<uint32_t>& tmpKeys, LargeVector<uint32_t>& tmpValues) {
   const size_t n = keys.size();
   if (n < 2 || keyBits <= 0) return;
   tmpKeys.resize(n);

@@ -174,7 +174,7 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
   // §5.1 steps 3-4: scan the marks into block indices, then fill the blocks from the dense copy.
   vox_.allocateMarked(marks.data(), threads);
   const MtSparseDesc& d = vox_.desc();
-  std::vector<float>& data = vox_.data();
+  LargeVector<float>& data = vox_.data();
   const int e[3] = {1 << d.logBlock[0], 1 << d.logBlock[1], 1 << d.logBlock[2]};
 #pragma omp parallel for num_threads(threads) schedule(static)
   for (int64_t b = 0; b < int64_t(d.numBlocks); ++b) {

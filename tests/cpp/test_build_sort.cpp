@@ -70,7 +70,7 @@ std::string name(const BuildOptions& o) {
 /// The locator's quantized leaf boxes as it computed them before they moved into the build: a
 /// pass over the leaves, floor/ceil on each reference's cached (float) cell bounds.
 std::vector<uint8_t> gatherLeafBoxes(const MatrixTree& tree, const CellSet& cells) {
-  const std::vector<uint32_t>& prims = tree.primitiveIndices();
+  const mtree::LargeVector<uint32_t>& prims = tree.primitiveIndices();
   std::vector<uint8_t> out(prims.size() * 6);
   if (tree.empty()) return out;
   const auto& m = tree.leafLevel();
@@ -176,7 +176,7 @@ void expectLeafBoxesAsGathered(const CellSet& cells, TreeKind kind, OverlapMode 
     for (int threads : {1, 2, 3}) {
       const BuildOptions o = opts(kind, overlap, sort, threads, height);
       MatrixTree t;
-      std::vector<uint8_t> boxes = {1, 2, 3};  // stale content is replaced
+      mtree::LargeVector<uint8_t> boxes = {1, 2, 3};  // stale content is replaced
       mtree::BuildStats st;
       MatrixTreeBuilder<CellSet>::build<6>(cells, o, t, &st, &boxes, mtree::LeafBoxQuantizer());
       mtest::expectSameTree(plain, t, what + ": " + name(o));
@@ -400,7 +400,7 @@ TEST(BuildSort, TwoThreadsGivenATeamOfOne) {
   const CellSet cells = loadGrid("cfd/brick_tets.su2");
   const BuildOptions o = opts(TreeKind::Octree, OverlapMode::Exact, BuildSort::Counting, 2);
   MatrixTree ref, t;
-  std::vector<uint8_t> refBoxes, boxes;
+  mtree::LargeVector<uint8_t> refBoxes, boxes;
   MatrixTreeBuilder<CellSet>::build<6>(cells, o, ref, nullptr, &refBoxes, mtree::LeafBoxQuantizer());
   const int levels = omp_get_max_active_levels();
   omp_set_max_active_levels(1);
@@ -417,7 +417,7 @@ TEST(BuildSort, TwoThreadsGivenATeamOfOne) {
 TEST(BuildSort, EmptySetAndBadValue) {
   const CellSet none(std::vector<double>{}, std::vector<uint32_t>{0}, std::vector<uint32_t>{}, std::vector<uint8_t>{});
   MatrixTree t;
-  std::vector<uint8_t> boxes(12, 7);
+  mtree::LargeVector<uint8_t> boxes(12, 7);
   MatrixTreeBuilder<CellSet>::build<6>(none, opts(TreeKind::Octree, OverlapMode::Exact, BuildSort::Counting, 2), t,
                                        nullptr, &boxes, mtree::LeafBoxQuantizer());
   EXPECT_TRUE(t.empty());

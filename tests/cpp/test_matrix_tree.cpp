@@ -195,7 +195,7 @@ TEST_P(RealMeshTree, VerticesFindLeavesHoldingTheirTriangles) {
 TEST_P(RealMeshTree, LeavesHoldExactlyTheOverlappingTriangles) {
   const MatrixTree& t = tree_;
   const int H = t.height();
-  const std::vector<uint32_t>& prims = t.primitiveIndices();
+  const mtree::LargeVector<uint32_t>& prims = t.primitiveIndices();
   const double tol = 1e-9 * maxComponent(t.rootBox().extent());
   uint64_t refs = 0, unsound = 0, unsorted = 0, leaves = 0;
   std::vector<std::pair<uint32_t, uint32_t>> ranges;

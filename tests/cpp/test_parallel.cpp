@@ -1,5 +1,6 @@
 // exclusiveScan and radixSortPairs against std::partial_sum / std::stable_sort, on random data of
-// sizes on both sides of the serial/parallel switch-overs, with 1, 2, 3 and 7 threads.
+// sizes on both sides of the serial/parallel switch-overs, with 1, 2, 3 and 7 threads; and
+// LargeVector (memory.h), the build's arrays, on both sides of its mapping threshold.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -97,7 +98,7 @@ TEST_P(RadixTest, MatchesStableSort) {
     SCOPED_TRACE(std::to_string(threads) + " threads");
     mtest::Rng rng(n * 131 + keyBits * 7 + threads);
     const uint64_t mask = keyBits >= 32 ? 0xFFFFFFFFull : ((uint64_t{1} << keyBits) - 1);
-    std::vector<uint32_t> keys(n), values(n);
+    mtree::LargeVector<uint32_t> keys(n), values(n);
     for (size_t i = 0; i < n; ++i) {
       keys[i] = static_cast<uint32_t>(rng.next() & mask);
       values[i] = static_cast<uint32_t>(i);  // the original position: checks stability
@@ -106,7 +107,7 @@ TEST_P(RadixTest, MatchesStableSort) {
     for (size_t i = 0; i < n; ++i) ref[i] = {keys[i], values[i]};
     std::stable_sort(ref.begin(), ref.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
 
-    std::vector<uint32_t> tk, tv;
+    mtree::LargeVector<uint32_t> tk, tv;
     mtree::radixSortPairs(keys, values, keyBits, threads, tk, tv);
     ASSERT_EQ(keys.size(), n);
     ASSERT_EQ(values.size(), n);
@@ -128,15 +129,15 @@ INSTANTIATE_TEST_SUITE_P(Sizes, RadixTest,
 TEST(Radix, StableWithFewDistinctKeysAndReusedScratch) {
   // Three key values over 100k pairs: every run of equal keys must keep its input order.
   const size_t n = 100000;
-  std::vector<uint32_t> tk(7), tv(3);  // scratch of the wrong size: resized by the sort
+  mtree::LargeVector<uint32_t> tk(7), tv(3);  // scratch of the wrong size: resized by the sort
   for (int threads : kThreads) {
-    std::vector<uint32_t> keys(n), values(n);
+    mtree::LargeVector<uint32_t> keys(n), values(n);
     mtest::Rng rng(threads);
     for (size_t i = 0; i < n; ++i) {
       keys[i] = rng.below(3) * 1000;  // 0, 1000, 2000: keyBits 11
       values[i] = static_cast<uint32_t>(i);
     }
-    std::vector<uint32_t> k0 = keys;
+    mtree::LargeVector<uint32_t> k0 = keys;
     mtree::radixSortPairs(keys, values, 11, threads, tk, tv);
     ASSERT_TRUE(std::is_sorted(keys.begin(), keys.end()));
     for (size_t i = 1; i < n; ++i)
@@ -149,17 +150,17 @@ TEST(Radix, StableWithFewDistinctKeysAndReusedScratch) {
 
 TEST(Radix, ResultDoesNotDependOnThreads) {
   const size_t n = 250000;
-  std::vector<uint32_t> k1(n), v1(n);
+  mtree::LargeVector<uint32_t> k1(n), v1(n);
   mtest::Rng rng(99);
   for (size_t i = 0; i < n; ++i) {
     k1[i] = rng.below(1u << 20);
     v1[i] = rng.below(1000);  // values need not be distinct
   }
-  std::vector<uint32_t> tk, tv;
-  std::vector<uint32_t> kr = k1, vr = v1;
+  mtree::LargeVector<uint32_t> tk, tv;
+  mtree::LargeVector<uint32_t> kr = k1, vr = v1;
   mtree::radixSortPairs(kr, vr, 20, 1, tk, tv);
   for (int threads : {2, 3, 4, 7, 16}) {
-    std::vector<uint32_t> k = k1, v = v1;
+    mtree::LargeVector<uint32_t> k = k1, v = v1;
     mtree::radixSortPairs(k, v, 20, threads, tk, tv);
     EXPECT_TRUE(k == kr) << threads << " threads";
     EXPECT_TRUE(v == vr) << threads << " threads";
@@ -167,10 +168,57 @@ TEST(Radix, ResultDoesNotDependOnThreads) {
 }
 
 TEST(Radix, ZeroKeyBitsLeavesInputAlone) {
-  std::vector<uint32_t> keys = {3, 1, 2}, values = {0, 1, 2}, tk, tv;
+  mtree::LargeVector<uint32_t> keys = {3, 1, 2}, values = {0, 1, 2}, tk, tv;
   mtree::radixSortPairs(keys, values, 0, 2, tk, tv);
-  EXPECT_EQ(keys, (std::vector<uint32_t>{3, 1, 2}));
-  EXPECT_EQ(values, (std::vector<uint32_t>{0, 1, 2}));
+  EXPECT_EQ(keys, (mtree::LargeVector<uint32_t>{3, 1, 2}));
+  EXPECT_EQ(values, (mtree::LargeVector<uint32_t>{0, 1, 2}));
+}
+
+TEST(LargeVector, MappingLengthRule) {
+  using mtree::detail::mappedLength;
+  const size_t M = size_t{1} << 20;
+  EXPECT_EQ(mappedLength(2 * M), 2 * M);
+  EXPECT_EQ(mappedLength(2 * M + 1), 2 * M + 4096);  // a whole huge page more would be 50%
+  EXPECT_EQ(mappedLength(4 * M - 100), 4 * M);        // rounding up adds 100 bytes
+  EXPECT_EQ(mappedLength(16 * M + 1), 18 * M);        // adds just under an eighth
+  EXPECT_EQ(mappedLength(10 * M + 1), 10 * M + 4096); // would add more than an eighth
+}
+
+TEST(LargeVector, BehavesAsAVectorAcrossTheMappingThreshold) {
+  // Sizes below, at and above kLargeBytes (2 MiB), grown by push_back (reallocations that move
+  // between operator new and mappings), copied, swapped, shrunk and freed: the contents stay.
+  const size_t big = (size_t{3} << 20) / sizeof(uint32_t) + 5;
+  mtree::LargeVector<uint32_t> v;
+  for (size_t i = 0; i < big; ++i) v.push_back(static_cast<uint32_t>(i * 2654435761u));
+  ASSERT_EQ(v.size(), big);
+#if defined(__linux__)
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(v.data()) % (size_t{2} << 20), 0u) << "a mapping starts on a huge page";
+#endif
+  size_t bad = 0;
+  for (size_t i = 0; i < big; ++i) bad += v[i] != static_cast<uint32_t>(i * 2654435761u);
+  EXPECT_EQ(bad, 0u);
+  mtree::LargeVector<uint32_t> copy = v, small(10, 7u);
+  EXPECT_TRUE(copy == v);
+  copy.swap(small);
+  EXPECT_EQ(copy, mtree::LargeVector<uint32_t>(10, 7u));
+  EXPECT_TRUE(small == v);
+  small.resize(3);
+  small.shrink_to_fit();
+  EXPECT_EQ(small, (mtree::LargeVector<uint32_t>{v[0], v[1], v[2]}));
+  // resize(n, value) and assign fill, also into a fresh mapping.
+  mtree::LargeVector<uint8_t> bytes;
+  bytes.resize(size_t{5} << 20, 0xAB);
+  EXPECT_EQ(std::count(bytes.begin(), bytes.end(), uint8_t{0xAB}), static_cast<std::ptrdiff_t>(bytes.size()));
+  bytes.assign(size_t{9} << 20, 0x3C);
+  EXPECT_EQ(std::count(bytes.begin(), bytes.end(), uint8_t{0x3C}), static_cast<std::ptrdiff_t>(bytes.size()));
+  // resize(n) keeps what was there (the new elements are default-initialised: written by the
+  // caller before they are read).
+  mtree::LargeVector<uint32_t> keep(4, 9u);
+  keep.resize(size_t{1} << 20);
+  keep[keep.size() - 1] = 1;
+  EXPECT_EQ(keep[0], 9u);
+  EXPECT_EQ(keep[3], 9u);
+  EXPECT_EQ(keep.back(), 1u);
 }
 
 TEST(Parallel, ResolveThreads) {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "mtree/layout.h"
+#include "mtree/memory.h"
 #include "mtree/parallel.h"
 
 namespace mtree {
@@ -143,8 +144,8 @@ class BlockSparseMatrix {
   }
 
   const std::vector<uint32_t>& pointers() const { return ptr_; }
-  const std::vector<T>& data() const { return data_; }
-  std::vector<T>& data() { return data_; }
+  const LargeVector<T>& data() const { return data_; }
+  LargeVector<T>& data() { return data_; }
 
   size_t pointerBytes() const { return ptr_.size() * sizeof(uint32_t); }
   size_t blockBytes() const { return data_.size() * sizeof(T); }
@@ -153,7 +154,7 @@ class BlockSparseMatrix {
  private:
   MtSparseDesc desc_{};
   std::vector<uint32_t> ptr_;
-  std::vector<T> data_;
+  LargeVector<T> data_;
   std::vector<uint32_t> blockPos_;  // pointer-matrix position of every allocated block
   T empty_{};
 };

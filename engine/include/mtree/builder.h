@@ -42,6 +42,7 @@
 #include <omp.h>
 
 #include "mtree/matrix_tree.h"
+#include "mtree/memory.h"
 #include "mtree/parallel.h"
 
 namespace mtree {
@@ -70,7 +71,7 @@ class MatrixTreeBuilder {
   /// The bytes must depend on the primitive and the leaf only: both orders give the same data.
   template <size_t Bytes, class RefFn>
   static void build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats,
-                    std::vector<uint8_t>* refData, RefFn&& fn);
+                    LargeVector<uint8_t>* refData, RefFn&& fn);
 };
 
 namespace detail {
@@ -295,7 +296,7 @@ inline void checkBuildOptions(const BuildOptions& opt, size_t numPrimitives) {
 template <class Prims>
 template <size_t Bytes, class RefFn>
 void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree,
-                                     BuildStats* stats, std::vector<uint8_t>* refData, RefFn&& fn) {
+                                     BuildStats* stats, LargeVector<uint8_t>* refData, RefFn&& fn) {
   detail::checkBuildOptions(opt, prims.size());
   if constexpr (Bytes > 0) {
     if (!refData) throw std::invalid_argument("MatrixTree: per-reference data needs an output vector");
@@ -427,9 +428,9 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   // ---- count + mark (step 2) ------------------------------------------------------------------
   // The exact test's verdicts for the first 64 candidates are kept as a bit mask, so the pair
   // writing of step 6 repeats no overlap test for all but the largest primitives.
-  std::vector<uint32_t>& counts = scratch.counts;
-  std::vector<uint64_t>& masks = scratch.masks;
-  std::vector<uint8_t>& marks = scratch.marks;
+  LargeVector<uint32_t>& counts = scratch.counts;
+  LargeVector<uint64_t>& masks = scratch.masks;
+  LargeVector<uint8_t>& marks = scratch.marks;
   counts.resize(static_cast<size_t>(n));
   masks.resize(exact ? static_cast<size_t>(n) : 0);
   marks.assign(tree.leaves_.pointerCount(), 0);
@@ -452,9 +453,9 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       (threads <= 2 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
   const uint32_t blockVolume = tree.leaves_.blockVolume();
   struct ThreadCounts {
-    std::vector<uint32_t> ownOrder, ownCounts;
-    std::vector<uint32_t>* blockOrder = &ownOrder;
-    std::vector<uint32_t>* leafCounts = &ownCounts;
+    LargeVector<uint32_t> ownOrder, ownCounts;
+    LargeVector<uint32_t>* blockOrder = &ownOrder;
+    LargeVector<uint32_t>* leafCounts = &ownCounts;
     uint32_t touched = 0;
   };
   std::vector<ThreadCounts> perThread(countHere ? static_cast<size_t>(threads) : 0);
@@ -495,7 +496,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
               marks[blk] = 1;
               lastBlock = blk;
               if (countHere) {
-                std::vector<uint32_t>& order = *tc->blockOrder;
+                LargeVector<uint32_t>& order = *tc->blockOrder;
                 if (order[blk] == MT_NULL) {
                   order[blk] = tc->touched++;
                   tc->leafCounts->resize(size_t(tc->touched) * blockVolume, 0);
@@ -609,11 +610,11 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     forEachLeafIn(i, prim, lo, hi, f);
   };
 
-  std::vector<uint32_t>& values = scratch.values;
+  LargeVector<uint32_t>& values = scratch.values;
   uint64_t numPairs = 0;
   if (opt.sort == BuildSort::Radix) {
     // ---- scan counts (step 5) -----------------------------------------------------------------
-    std::vector<uint32_t>& offsets = scratch.offsets;
+    LargeVector<uint32_t>& offsets = scratch.offsets;
     offsets.resize(static_cast<size_t>(n));
     numPairs = exclusiveScan(counts.data(), offsets.data(), static_cast<size_t>(n), threads);
     if (numPairs >= MT_NULL)
@@ -621,7 +622,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     clock.lap("scan");
 
     // ---- write pairs (step 6) -----------------------------------------------------------------
-    std::vector<uint32_t>& keys = scratch.keys;
+    LargeVector<uint32_t>& keys = scratch.keys;
     keys.resize(numPairs);
     values.resize(numPairs);
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
@@ -698,8 +699,8 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     const bool shared = threads > 2;
     const size_t L = tree.leaves_.data().size();
     const int64_t nl = static_cast<int64_t>(L);
-    std::vector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
-    std::vector<uint32_t>& cursor = scratch.offsets;  // next free slot per leaf
+    LargeVector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
+    LargeVector<uint32_t>& cursor = scratch.offsets;  // next free slot per leaf
     cursor.resize(L);
     if (countHere) {
       // Counted by count+mark in each thread's first-touch block order: every allocated block

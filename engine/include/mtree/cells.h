@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "mtree/geometry.h"
+#include "mtree/memory.h"
 
 namespace mtree {
 
@@ -170,7 +171,7 @@ class CellSet {
   }
   /// Frees the cached bounds (24 bytes per cell; the tree build is what reads them often):
   /// cellBox() and bounds() compute them from then on.
-  void releaseBounds() { std::vector<float>().swap(box_); }
+  void releaseBounds() { LargeVector<float>().swap(box_); }
   /// Whether the bounds are cached (see releaseBounds).
   bool boundsCached() const { return !box_.empty() || size() == 0; }
   /// A hint that cell c's bounds are read soon (the builder's gather over the leaves).
@@ -464,7 +465,7 @@ class CellSet {
   using Cells = Rebinding<CellData>;
   Cells cells_;
   int64_t uniform_ = -1;  // >= 0: every cell has this many points (owned offsets are released)
-  std::vector<float> box_;  // 6 per cell, until releaseBounds()
+  LargeVector<float> box_;  // 6 per cell, until releaseBounds()
   Vec3 maxExt_;
   Box total_;
   CellAxes axes_ = CellAxes::Faces;

@@ -115,7 +115,7 @@ class MatrixTree {
   // ---- storage ----
   const BlockSparseMatrix<uint8_t>& innerLevel(int l) const { return inner_[l]; }
   const BlockSparseMatrix<MtLeafRange>& leafLevel() const { return leaves_; }
-  const std::vector<uint32_t>& primitiveIndices() const { return prims_; }
+  const LargeVector<uint32_t>& primitiveIndices() const { return prims_; }
   /// Bytes of level l (pointer matrix + allocated blocks); bytes() adds the walk's caches.
   size_t levelBytes(int l) const { return l == height_ ? leaves_.bytes() : inner_[l].bytes(); }
   /// The leaf level's occupancy masks: one bit per entry of every allocated 8x8x8 leaf block,
@@ -232,7 +232,7 @@ class MatrixTree {
   std::vector<Vec3> cellSize_;
   std::vector<BlockSparseMatrix<uint8_t>> inner_;  // levels 0..H-1
   BlockSparseMatrix<MtLeafRange> leaves_;          // level H
-  std::vector<uint32_t> prims_;
+  LargeVector<uint32_t> prims_;
   std::vector<uint64_t> leafMask_;  // see leafMasks()
   std::vector<uint64_t> levelBits_;  // see innerExists()
   struct DenseLevel {
@@ -260,9 +260,9 @@ class MatrixTree {
   // Work arrays of the build, kept between builds so that rebuilding every frame does not pay
   // for allocating and first-touching them again (the paper's §6 remark on memory handling).
   struct BuildScratch {
-    std::vector<uint32_t> counts, offsets, keys, values, tmpKeys, tmpValues;
-    std::vector<uint64_t> masks;
-    std::vector<uint8_t> marks;
+    LargeVector<uint32_t> counts, offsets, keys, values, tmpKeys, tmpValues;
+    LargeVector<uint64_t> masks;
+    LargeVector<uint8_t> marks;
   };
   BuildScratch scratch_;
 };

@@ -183,7 +183,7 @@ class CellLocator {
   /// (xlo xhi ylo yhi zlo zhi); a point p of leaf box lb is tested as
   /// q[a] = min(255, max(0, (p[a] - lb.lo[a]) * (255 / (lb.hi[a] - lb.lo[a])))). Throws
   /// std::invalid_argument when the sizes disagree. Call again after every rebuild.
-  void upload(const MatrixTree& tree, const CellSet& cells, const std::vector<uint8_t>& leafBoxes);
+  void upload(const MatrixTree& tree, const CellSet& cells, const LargeVector<uint8_t>& leafBoxes);
   bool uploaded() const;
   /// Bytes held on the device by the upload (not counting the per-call point buffers).
   size_t deviceBytes() const;

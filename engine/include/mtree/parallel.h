@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "mtree/memory.h"
+
 namespace mtree {
 
 /// Passes with about a nanosecond of work per item (bounds, scans, copies, existence marks) run
@@ -28,7 +30,7 @@ uint64_t exclusiveScan(const uint8_t* in, uint32_t* out, size_t n, int threads);
 /// Digits of at most 11 bits, per-thread histograms, scatter by chunk: Satish, Harris & Garland
 /// 2009 on a CPU.
 /// tmpKeys/tmpValues are scratch buffers (resized as needed, reusable across calls).
-void radixSortPairs(std::vector<uint32_t>& keys, std::vector<uint32_t>& values, int keyBits,
-                    int threads, std::vector<uint32_t>& tmpKeys, std::vector<uint32_t>& tmpValues);
+void radixSortPairs(LargeVector<uint32_t>& keys, LargeVector<uint32_t>& values, int keyBits, int threads,
+                    LargeVector<uint32_t>& tmpKeys, LargeVector<uint32_t>& tmpValues);
 
 }  // namespace mtree
