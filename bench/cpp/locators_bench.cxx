@@ -6,6 +6,9 @@
 // FindCell runs single-threaded and on THREADS OpenMP threads (one vtkGenericCell per thread:
 // FindCell with a generic cell is thread-safe in every locator measured). IntersectWithLine is
 // timed single-threaded. Each query loop runs 3 times and the best pass is reported. Disagreements are counted against vtkCellLocator, VTK's reference.
+// build_ms: median of 3 builds, each after FreeSearchStructure (nothing kept from the last one);
+// rebuild_ms: median of 3 BuildLocator calls after the points moved (see the loop: what a
+// deforming mesh costs per frame, with whatever storage the locator keeps between builds).
 //
 // The matrix-tree rows also time the batched FindCells (ids only; best of 3 after one warm-up
 // call): batch_pts_per_s. BACKEND cpu (default) | opencl | all: opencl adds the row
@@ -23,6 +26,7 @@
 #include "vtkIdTypeArray.h"
 #include "vtkModifiedBSPTree.h"
 #include "vtkNew.h"
+#include "vtkPointSet.h"
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
 #include "vtkUnstructuredGrid.h"
@@ -170,7 +174,7 @@ int main(int argc, char* argv[])
 
   struct Result
   {
-    double buildMs, pps1, ppsAll, raysPerS, raysPerCpuS = 0, pps1Cpu = 0;
+    double buildMs, rebuildMs = -1, pps1, ppsAll, raysPerS, raysPerCpuS = 0, pps1Cpu = 0;
     long long bytes;
     long long height = -1, refs = -1, leaves = -1; // matrix trees only
     std::vector<vtkIdType> found;
@@ -184,6 +188,17 @@ int main(int argc, char* argv[])
   for (int i = 0; i < nPts; ++i)
     batchPoints->SetPoint(i, &pts[3 * i]);
   constexpr int kRepeats = 3; // timed passes of each query loop, best kept
+  // The points the rebuilds move (point sets only) and a copy of the original ones.
+  vtkPointSet* pset = vtkPointSet::SafeDownCast(ds);
+  vtkPoints* moved = pset ? pset->GetPoints() : nullptr;
+  vtkNew<vtkPoints> originalStore;
+  vtkPoints* original = nullptr;
+  double centre[3] = { 0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5]) };
+  if (moved)
+  {
+    originalStore->DeepCopy(moved);
+    original = originalStore;
+  }
   std::vector<Result> results;
   for (Entry& e : locs)
   {
@@ -203,6 +218,38 @@ int main(int argc, char* argv[])
     std::sort(builds.begin(), builds.end());
     Result res;
     res.buildMs = builds[1];
+    // Rebuilds after the points moved, the per-frame case of a deforming mesh: the points are
+    // scaled about the bounds' centre by 1 + 1e-3 r (r = 1, 2, 3), the data set marked modified
+    // and BuildLocator() called without FreeSearchStructure (a locator keeps whatever storage it
+    // keeps); median of the 3. The original points are copied back and built on (untimed)
+    // before the queries.
+    if (original)
+    {
+      std::vector<double> rebuilds;
+      for (int r = 1; r <= 3; ++r)
+      {
+        const double s = 1.0 + 1e-3 * r;
+        for (vtkIdType i = 0; i < moved->GetNumberOfPoints(); ++i)
+        {
+          double p[3];
+          original->GetPoint(i, p);
+          for (int a = 0; a < 3; ++a)
+            p[a] = centre[a] + s * (p[a] - centre[a]);
+          moved->SetPoint(i, p);
+        }
+        moved->Modified();
+        ds->Modified();
+        const double t0 = Now();
+        loc->BuildLocator();
+        rebuilds.push_back((Now() - t0) * 1e3);
+      }
+      std::sort(rebuilds.begin(), rebuilds.end());
+      res.rebuildMs = rebuilds[1];
+      moved->DeepCopy(original);
+      moved->Modified();
+      ds->Modified();
+      loc->BuildLocator();
+    }
     // Memory: the matrix tree reports its bytes; VTK 9.1's locators do not (-1).
     res.bytes = -1;
     if (auto* m = vtkMatrixTreeLocator::SafeDownCast(loc))
@@ -359,14 +406,14 @@ int main(int argc, char* argv[])
         differs += r.found[i] != results[cpuIndex].found[i];
     }
     std::printf("{\"locator\": \"%s\", \"backend\": \"%s\", \"device\": \"%s\", \"cells\": %lld, "
-                "\"build_ms\": %.3f, \"bytes\": %lld, \"height\": %lld, \"refs\": %lld, \"leaves\": %lld, "
+                "\"build_ms\": %.3f, \"rebuild_ms\": %.3f, \"bytes\": %lld, \"height\": %lld, \"refs\": %lld, \"leaves\": %lld, "
                 "\"findcell_pts_per_s_1thread\": %.1f, \"findcell_pts_per_cpu_s_1thread\": %.1f, "
                 "\"findcell_pts_per_s_all\": %.1f, \"threads\": %d, "
                 "\"batch_pts_per_s\": %.1f, \"first_call_ms\": %.3f, \"first_call_phases\": \"%s\", \"phases\": \"%s\", "
                 "\"differs_from_cpu\": %lld, \"failed\": %s, "
                 "\"rays_per_s\": %.1f, \"rays_per_cpu_s\": %.1f, \"points\": %d, \"found\": %lld, \"disagreements\": %lld}\n",
       locs[li].name, r.opencl ? "opencl" : "cpu", r.device.c_str(), static_cast<long long>(ds->GetNumberOfCells()),
-      r.buildMs, r.bytes, r.height, r.refs, r.leaves, r.pps1, r.pps1Cpu, r.ppsAll, threads, r.batchPps, r.firstCallMs, r.firstPhases.c_str(), r.phases.c_str(), differs,
+      r.buildMs, r.rebuildMs, r.bytes, r.height, r.refs, r.leaves, r.pps1, r.pps1Cpu, r.ppsAll, threads, r.batchPps, r.firstCallMs, r.firstPhases.c_str(), r.phases.c_str(), differs,
       r.failed ? "true" : "false", r.raysPerS, r.raysPerCpuS, nPts, found, dis);
   }
   return 0;
