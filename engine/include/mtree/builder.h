@@ -226,15 +226,18 @@ inline Box padRootBox(Box root) {
 }
 
 /// The automatic height (BuildOptions::height == 0) over a padded root box: chooseHeight() from
-/// the median primitive extent of a deterministic sample of at most 8192 primitives (its standard
-/// error is ~1% of the spread, far below the factor 2 between heights), then one level up at a
-/// time while the sampled bounding boxes cover more than opt.maxCandidates leaves on average.
+/// the median primitive extent of a deterministic sample (every (n / 2048)-th primitive: all of
+/// them below 2048, else 2048 to 4095; the median's standard error is ~2% of the spread, far
+/// below the factor 2 between heights), then one level up at a time while the sampled bounding
+/// boxes cover more than opt.maxCandidates leaves on average. The sample was every (n / 8192)-th
+/// until 2026-11-21: the same heights and references on every CFD grid and mesh of the shared
+/// data, for a quarter of the time (brick_hex's setup 0.30 -> 0.05 ms of a 1.9 ms build).
 /// `median` receives the median extent. Shared by the CPU and the OpenCL builders.
 template <class Prims>
 int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, double& median) {
   const Vec3 ext = root.extent();
   const int64_t n = static_cast<int64_t>(prims.size());
-  const int64_t stride = std::max<int64_t>(1, n / 8192);
+  const int64_t stride = std::max<int64_t>(1, n / 2048);
   std::vector<double> sizes;
   std::vector<Box> sample;
   sizes.reserve(static_cast<size_t>(n / stride + 1));
