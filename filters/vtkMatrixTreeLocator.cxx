@@ -58,6 +58,8 @@ struct vtkMatrixTreeLocatorInternals
   mtree::MatrixTree Tree;
   mtree::BuildStats Stats;
   double MaxCellExtent[3] = { 0, 0, 0 }; // largest cell bounding-box extent per axis
+  double LeafScaleUsed = 0;               // the last build's leaf scale (LeafScale or automatic)
+  double MaxCandidatesUsed = 0;           // and candidate cap (MaxCandidates or automatic)
   // Per reference (same order as the tree's primitive indices): the cell's bounds, padded by
   // 1e-3 of its largest extent, clipped to the leaf and quantized outwards to 1/255 of the
   // leaf (xlo xhi ylo yhi zlo zhi). Point location scans these sequentially instead of
@@ -80,6 +82,35 @@ vtkStandardNewMacro(vtkMatrixTreeLocator);
 
 namespace
 {
+// Whether no cell is 3-D (a surface; lines and vertices too): the automatic LeafScale and
+// MaxCandidates are then 4 and 3 instead of 1 and 16, about two levels up from the volume rule
+// (leaves of about four median triangle extents, not one). On the five surface meshes that cut
+// references per triangle from 6-10 to 1.8-2.3, memory from 2.2-3.7x vtkStaticCellLocator's to
+// 0.56-0.68x and the build from 3.5-7.8x to 1.0-2.4x, and rays went from 4.8-8.4x to 6.4-9.6x
+// faster than VTK's, FindCell within the noise (docs/bench_locators.md); on the volume grids
+// one level up costs FindCell 20%, so they keep the volume rule. A first 3-D cell ends the scan.
+bool NoVolumeCells(const mtree::CellSet& cells)
+{
+  // Each type's dimension from VTK's own cell class, once per type met.
+  signed char dim[256];
+  std::fill(dim, dim + 256, static_cast<signed char>(-1));
+  const size_t scan = cells.uniformType() ? std::min<size_t>(cells.size(), 1) : cells.size();
+  for (size_t c = 0; c < scan; ++c)
+  {
+    const uint8_t t = cells.type(c);
+    if (dim[t] < 0)
+    {
+      vtkSmartPointer<vtkCell> cell = vtkSmartPointer<vtkCell>::Take(vtkGenericCell::InstantiateCell(t));
+      dim[t] = static_cast<signed char>(cell ? cell->GetCellDimension() : 0);
+    }
+    if (dim[t] == 3)
+    {
+      return false;
+    }
+  }
+  return true;
+}
+
 // Distance squared from x to a box given as (lo, hi).
 inline double BoxDistance2(const double x[3], const mtree::Box& b)
 {
@@ -971,9 +1002,7 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   opt.kind = this->TreeType == KDTREE ? mtree::TreeKind::RegularKd : mtree::TreeKind::Octree;
   opt.height = this->Height;
   opt.blockEdge = this->BlockSize;
-  opt.leafScale = this->LeafScale;
   opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
-  opt.maxCandidates = this->MaxCandidates;
   opt.sort = this->BuildSort == RADIX ? mtree::BuildSort::Radix : mtree::BuildSort::Counting;
   opt.threads = buildThreads;
   double convertMs2 = 0;
@@ -1016,6 +1045,11 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
     }
     in.Cells.setAxes(this->FullSeparatingAxes ? mtree::CellAxes::All : mtree::CellAxes::Faces);
     convertMs2 = msSince(tStart) - convertMs;
+    const bool surface = (this->LeafScale <= 0 || this->MaxCandidates <= 0) && NoVolumeCells(in.Cells);
+    opt.leafScale = this->LeafScale > 0 ? std::max(this->LeafScale, 1e-3) : (surface ? 4.0 : 1.0);
+    opt.maxCandidates = this->MaxCandidates > 0 ? std::max(this->MaxCandidates, 1.0) : (surface ? 3.0 : 16.0);
+    in.LeafScaleUsed = opt.leafScale;
+    in.MaxCandidatesUsed = opt.maxCandidates;
     // The quantized leaf boxes are the builder's per-reference data: written at the scatter
     // (COUNTING) or by a pass over the leaves (RADIX), the same bytes either way.
     mtree::MatrixTreeBuilder<mtree::CellSet>::build<6>(
@@ -2143,6 +2177,14 @@ void vtkMatrixTreeLocator::FindClosestPoints(
 }
 
 //------------------------------------------------------------------------------
+double vtkMatrixTreeLocator::GetLeafScaleUsed()
+{
+  return this->Internals->Valid ? this->Internals->LeafScaleUsed : 0.0;
+}
+double vtkMatrixTreeLocator::GetMaxCandidatesUsed()
+{
+  return this->Internals->Valid ? this->Internals->MaxCandidatesUsed : 0.0;
+}
 int vtkMatrixTreeLocator::GetTreeHeight()
 {
   return this->Internals->Valid ? this->Internals->Tree.height() : 0;

@@ -103,14 +103,21 @@ public:
 
   ///@{
   /**
-   * Automatic height: target leaf extent in median cell extents (default 1: point location
-   * tests every candidate of one leaf, so leaves about one cell wide), and the largest mean
-   * number of candidate leaves per cell before the height steps back up (default 16).
+   * Automatic height: target leaf extent in median cell extents (LeafScale), and the largest
+   * mean number of candidate leaves per cell before the height steps back up (MaxCandidates).
+   * 0, the default of both, chooses from the cells: 1 and 16 when any cell is 3-D (point
+   * location tests every candidate of one leaf, so leaves about one cell wide), 4 and 3 when
+   * none is (a surface: a triangle then lies in about 2 leaves instead of 6-10; rays, memory
+   * and the build gain, see docs/bench_locators.md). Values above 0 are used as given (LeafScale
+   * at least 1e-3, MaxCandidates at least 1). GetLeafScaleUsed / GetMaxCandidatesUsed: what the
+   * last build used (0 before one).
    */
-  vtkSetClampMacro(LeafScale, double, 1e-3, 1e3);
+  vtkSetClampMacro(LeafScale, double, 0.0, 1e3);
   vtkGetMacro(LeafScale, double);
-  vtkSetClampMacro(MaxCandidates, double, 1.0, 1e6);
+  vtkSetClampMacro(MaxCandidates, double, 0.0, 1e6);
   vtkGetMacro(MaxCandidates, double);
+  double GetLeafScaleUsed();
+  double GetMaxCandidatesUsed();
   ///@}
 
   ///@{
@@ -397,8 +404,8 @@ protected:
   int BlockSize = 8;
   bool ExactOverlap = true;
   bool FullSeparatingAxes = false;
-  double LeafScale = 1.0;
-  double MaxCandidates = 16.0;
+  double LeafScale = 0.0;
+  double MaxCandidates = 0.0;
   int NumberOfThreads = 0;
   int BuildSort = COUNTING;
   int CellStorage = CELLS_AUTOMATIC;

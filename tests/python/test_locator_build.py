@@ -256,3 +256,50 @@ def test_cache_cell_bounds_keeps_24_bytes_per_cell_and_the_answers():
     assert on.GetMemorySize() == off.GetMemorySize() + 24 * ds.GetNumberOfCells()
     for a, b in zip(answers(on, ds, 5), answers(off, ds, 5)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_automatic_height_rule_follows_the_cell_dimension():
+    """LeafScale and MaxCandidates 0 (the defaults) are 4 and 3 on a surface (no 3-D cell) and 1
+    and 16 on a volume grid or a mix with a 3-D cell; values set are used as given. The surface
+    rule gives the shallower tree (fewer references per triangle), and the answers stay VTK's."""
+    bunny = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
+    surf = locator(bunny)
+    assert (surf.GetLeafScale(), surf.GetMaxCandidates()) == (0.0, 0.0)
+    assert (surf.GetLeafScaleUsed(), surf.GetMaxCandidatesUsed()) == (4.0, 3.0)
+    vol_rule = locator(bunny, LeafScale=1.0, MaxCandidates=16.0)
+    assert (vol_rule.GetLeafScaleUsed(), vol_rule.GetMaxCandidatesUsed()) == (1.0, 16.0)
+    assert surf.GetTreeHeight() < vol_rule.GetTreeHeight()
+    refs_per_tri = surf.GetNumberOfReferences() / bunny.GetNumberOfCells()
+    assert refs_per_tri < 0.5 * vol_rule.GetNumberOfReferences() / bunny.GetNumberOfCells()
+    # The same ray answers as vtkCellLocator's on the shallow tree.
+    from vtkmodules.vtkCommonDataModel import vtkCellLocator
+    ref = vtkCellLocator()
+    ref.SetDataSet(bunny)
+    ref.BuildLocator()
+    b = bunny.GetBounds()
+    rng = np.random.default_rng(4)
+    gc = vtkGenericCell()
+    hits = 0
+    for _ in range(300):
+        p1 = [rng.uniform(b[2 * a], b[2 * a + 1]) for a in range(3)]
+        p2 = [p1[a] + rng.uniform(-1, 1) * (b[2 * a + 1] - b[2 * a]) for a in range(3)]
+        got = []
+        for loc in (surf, ref):
+            t, x, pc, sub, cid = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0), reference(0)
+            hit = loc.IntersectWithLine(p1, p2, 0.0, t, x, pc, sub, cid, gc)
+            got.append((hit, float(t), int(cid)))
+        assert got[0][0] == got[1][0]
+        if got[0][0]:
+            hits += 1
+            assert abs(got[0][1] - got[1][1]) <= 1e-9
+    assert hits > 30
+    # A volume grid, and a volume grid with surface cells appended: the volume rule.
+    tets = matrixtree.read_grid(os.path.join(scenes.data_dir(), "cfd", "brick_tets.su2"))
+    vol = locator(tets)
+    assert (vol.GetLeafScaleUsed(), vol.GetMaxCandidatesUsed()) == (1.0, 16.0)
+    app = vtkAppendFilter()
+    app.AddInputData(bunny)
+    app.AddInputData(tets)
+    app.Update()
+    mixed = locator(app.GetOutput())
+    assert (mixed.GetLeafScaleUsed(), mixed.GetMaxCandidatesUsed()) == (1.0, 16.0)
