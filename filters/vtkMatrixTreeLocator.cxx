@@ -363,7 +363,7 @@ private:
 constexpr double kTetraTolerance = 1e-3;
 
 // The point-location loop over the candidates [k, end) of leaf n, the leaf that
-// MatrixTree::leafFind gives for x (with the range it read): FindCell runs it from the leaf's
+// MatrixTree::leafHolding gives for x (with the range it read): FindCell runs it from the leaf's
 // first candidate, the OpenCL backend from the candidate where the device stopped.
 // Asks for the cache lines of [begin, end), in 64-byte steps from begin: a leaf's references
 // (ids, quantized boxes) are read at random, so their lines are requested together and their
@@ -380,7 +380,7 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell, double pcoords[3], double* weights,
   bool engineEval)
 {
-  const MtLeafRange r = n.range; // leafFind's read of the leaf
+  const MtLeafRange r = n.range; // leafHolding's read of the leaf
   const uint32_t* ids = in.Tree.primitiveIndices().data();
   const uint8_t* boxes = in.LeafBoxes.data();
   // The leaf's boxes and its cell ids are two independent reads (usually cache misses): start
@@ -1122,7 +1122,7 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
     return -1;
   }
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
-  const mtree::NodeRef n = in.Tree.leafFind(mtree::Vec3(x));
+  const mtree::NodeRef n = in.Tree.leafHolding(mtree::Vec3(x));
   if (!n.exists)
   {
     return -1;
@@ -2009,7 +2009,7 @@ void vtkMatrixTreeLocator::FindCells(
         if (resume)
         {
           ++resumes;
-          const mtree::NodeRef leaf = in.Tree.leafFind(mtree::Vec3(x));
+          const mtree::NodeRef leaf = in.Tree.leafHolding(mtree::Vec3(x));
           ids[i] = leaf.exists
             ? ScanCandidates(this->DataSet, in, x, leaf, k, cell, p, wk.data(), this->EngineCellEvaluation)
             : -1;

@@ -1,6 +1,7 @@
 // Matrix trees built over the 7 real meshes, as octree and as regular kd-tree with the automatic
 // height, checked against references computed here:
-//   leafFind (hash + binary search)  vs  leafFindTopDown (plain descent), 10^5 random points;
+//   leafFind (hash + binary search)  vs  leafFindTopDown (plain descent), 10^5 random points
+//   (and leafHolding: leafFind's leaf or nothing);
 //   leaf contents                    vs  the exact triangle/box test, both ways (sound, complete);
 //   inner levels                     vs  the OR of their children (monotone and exact existence);
 //   builds with 1, 2, 4 threads      vs  each other, byte for byte;
@@ -122,7 +123,13 @@ TEST_P(RealMeshTree, LeafFindMatchesTopDown) {
     mtree::TraversalStats st;
     const NodeRef a = t.leafFind(p, &st);
     const NodeRef b = t.leafFindTopDown(p);
-    const bool same = a.level == b.level && a.exists == b.exists &&
+    // leafHolding: leafFind's leaf when it exists (same cell and range), else nothing.
+    const NodeRef h = t.leafHolding(p);
+    const bool holdingSame =
+        h.exists == a.exists && (!a.exists || (h.level == a.level && h.c[0] == a.c[0] && h.c[1] == a.c[1] &&
+                                               h.c[2] == a.c[2] && h.range.begin == a.range.begin &&
+                                               h.range.end == a.range.end));
+    const bool same = holdingSame && a.level == b.level && a.exists == b.exists &&
                       (a.level < 0 || (a.c[0] == b.c[0] && a.c[1] == b.c[1] && a.c[2] == b.c[2]));
     if (!same && mismatches++ == 0) {
       char buf[300];

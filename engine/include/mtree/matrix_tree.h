@@ -179,6 +179,18 @@ class MatrixTree {
   NodeRef leafFind(Vec3 p, TraversalStats* st = nullptr) const;
   /// Same answer by a plain top-down descent, O(H): the reference for tests.
   NodeRef leafFindTopDown(Vec3 p) const;
+  /// The leaf holding p if it exists (leafFind's answer then), else exists = false without the
+  /// search for the deepest existing node: one block-sparse access, for point location, which
+  /// only needs the leaf (a point in no leaf is in no primitive).
+  NodeRef leafHolding(Vec3 p) const {
+    NodeRef r;
+    int L[3];
+    if (!leafCoords(p, L) || !leafAt(L, r.range)) return r;
+    r.level = height_;
+    for (int a = 0; a < 3; ++a) r.c[a] = L[a];
+    r.exists = true;
+    return r;
+  }
   /// Leaf finding from bottom-level coordinates with the search bracketed: level `lo` is known to
   /// exist on the path and level `hi` known absent (hi = H+1 if unknown).
   NodeRef locate(const int L[3], int lo, int hi, TraversalStats* st) const;
