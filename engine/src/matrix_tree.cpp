@@ -127,12 +127,6 @@ uint64_t MatrixTree::numLeaves() const {
   return n;
 }
 
-bool MatrixTree::leafCoords(Vec3 p, int L[3]) const {
-  if (empty_ || !isFinite(p) || !root_.contains(p)) return false;
-  for (int a = 0; a < 3; ++a) L[a] = cellIndex((p[a] - root_.lo[a]) * invLeaf_[a], 0, dim(height_, a) - 1);
-  return true;
-}
-
 NodeRef MatrixTree::leafFind(Vec3 p, TraversalStats* st) const {
   int L[3];
   if (!leafCoords(p, L)) return NodeRef{};

@@ -168,6 +168,7 @@ class MatrixTree {
     return v && *v;
   }
   /// Bottom-level coordinates of the leaf cell containing p; false if p is outside the root box.
+  /// Inside it (p >= lo: p - lo >= 0) truncation is floor, so no libm floor call per axis.
   bool leafCoords(Vec3 p, int L[3]) const;
   /// The ancestor at `level` of bottom-level cell L.
   void ancestor(const int L[3], int level, int c[3]) const {
@@ -293,6 +294,13 @@ inline int cellIndexNonNegative(double x, int lo, int hi) {
   if (!(x >= lo)) return lo;  // also catches NaN
   if (x >= hi) return hi;
   return static_cast<int>(x);
+}
+
+inline bool MatrixTree::leafCoords(Vec3 p, int L[3]) const {
+  if (empty_ || !isFinite(p) || !root_.contains(p)) return false;
+  const std::array<int, 3>& ld = logDims_[height_];
+  for (int a = 0; a < 3; ++a) L[a] = cellIndexNonNegative((p[a] - root_.lo[a]) * invLeaf_[a], 0, (1 << ld[a]) - 1);
+  return true;
 }
 
 /// Computes the per-level logDims of a tree of `kind` over a root box of extent `e`, `height` levels
