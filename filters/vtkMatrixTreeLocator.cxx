@@ -601,7 +601,7 @@ public:
     int L[3];
     for (int a = 0; a < 3; ++a)
     {
-      L[a] = mtree::cellIndex((p[a] - root.lo[a]) / cs[a], 0, tree.dim(this->H, a) - 1);
+      L[a] = mtree::cellIndexNonNegative((p[a] - root.lo[a]) / cs[a], 0, tree.dim(this->H, a) - 1);
     }
     MtLeafRange r;
     const uint32_t begin = static_cast<uint32_t>(ids - this->Prims);
@@ -679,8 +679,12 @@ public:
       const double q1 = (this->O[a] + this->D[a] * tb - lb.lo[a]) / unit;
       const double mq = Margin[a] / unit + 1e-3;
       const double lo = std::min(q0, q1) - mq, hi = std::max(q0, q1) + mq;
-      qmin[a] = static_cast<uint8_t>(lo > 0 ? (lo < 255 ? std::floor(lo) : 255) : 0);
-      qmax[a] = static_cast<uint8_t>(hi < 255 ? (hi > 0 ? std::ceil(hi) : 0) : 255);
+      // floor(lo) and ceil(hi) by truncation, exact for the positive values they are taken of
+      // (std::floor and std::ceil are libm calls in a build without SSE4.1).
+      const int tl = lo > 0 ? (lo < 255 ? static_cast<int>(lo) : 255) : 0;
+      const int th = hi > 0 ? (hi < 255 ? static_cast<int>(hi) : 255) : 0;
+      qmin[a] = static_cast<uint8_t>(tl);
+      qmax[a] = static_cast<uint8_t>(hi < 255 ? th + (th < hi ? 1 : 0) : 255);
     }
     const ByteBoxTest boxTest(qmax, qmin, count);
     constexpr uint32_t kChunk = 64;

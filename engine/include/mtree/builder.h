@@ -401,9 +401,9 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
   if (stats) stats->height = H;
   clock.lap("setup");
 
-  // Candidate range of bottom-level cells of a primitive (its bounding box, clamped). With a
-  // lower bound of 0, cellIndexNonNegative is cellIndex for every x (negatives and NaN clamp to
-  // 0 either way) without a floor per coordinate; every pass over the primitives computes it.
+  // Candidate range of bottom-level cells of a primitive (its bounding box, clamped): floor of
+  // the local coordinate by cellIndexNonNegative (negatives and NaN clamp to 0), without a floor
+  // call per coordinate; every pass over the primitives computes it.
   auto cellRange = [&](const Box& b, int lo[3], int hi[3]) {
     const int dims[3] = {nx, ny, nz};
     for (int a = 0; a < 3; ++a) {

@@ -280,16 +280,10 @@ class MatrixTree {
   BuildScratch scratch_;
 };
 
-/// floor(x) clamped to [lo, hi], clamping in floating point first so a huge x cannot overflow.
-inline int cellIndex(double x, int lo, int hi) {
-  const double f = std::floor(x);
-  if (!(f >= lo)) return lo;  // also catches NaN
-  if (f >= hi) return hi;
-  return static_cast<int>(f);
-}
-
-/// cellIndex for 0 <= lo <= hi: truncation is floor there, and needs no libm call (std::floor is
-/// one without SSE4.1, which a portable build does not assume).
+/// floor(x) clamped to [lo, hi] for 0 <= lo <= hi, clamping in floating point first so a huge x
+/// cannot overflow: below lo (and NaN) gives lo, and from lo up truncation is floor, so no libm
+/// call (std::floor is one without SSE4.1, which a portable build does not assume). Every cell
+/// index of the trees has lo = 0.
 inline int cellIndexNonNegative(double x, int lo, int hi) {
   if (!(x >= lo)) return lo;  // also catches NaN
   if (x >= hi) return hi;
@@ -448,7 +442,7 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
   {
     const Vec3 p = ol + d * t0;
     for (int a = 0; a < 3; ++a)
-      L[a] = cellIndex(p[a] * invLeaf_[a], 0, dim(H, a) - 1);
+      L[a] = cellIndexNonNegative(p[a] * invLeaf_[a], 0, dim(H, a) - 1);
   }
   NodeRef n = locate(L, 0, H + 1, st);
   double tEnter = t0;
