@@ -205,19 +205,25 @@ int main(int argc, char* argv[])
     vtkAbstractCellLocator* loc = e.loc;
     loc->SetDataSet(ds);
     loc->LazyEvaluationOff();
-    // Median of 3 builds; FreeSearchStructure + Modified force each one.
-    std::vector<double> builds;
-    for (int r = 0; r < 3; ++r)
-    {
+    // The median of 3 BuildLocator() calls (ms), each after prepare(r) for r = 1, 2, 3 (untimed).
+    auto medianBuildMs = [loc](auto&& prepare) {
+      double ms[3];
+      for (int r = 1; r <= 3; ++r)
+      {
+        prepare(r);
+        const double t0 = Now();
+        loc->BuildLocator();
+        ms[r - 1] = (Now() - t0) * 1e3;
+      }
+      std::sort(ms, ms + 3);
+      return ms[1];
+    };
+    Result res;
+    // FreeSearchStructure + Modified force each build.
+    res.buildMs = medianBuildMs([loc](int) {
       loc->FreeSearchStructure();
       loc->Modified();
-      const double t0 = Now();
-      loc->BuildLocator();
-      builds.push_back((Now() - t0) * 1e3);
-    }
-    std::sort(builds.begin(), builds.end());
-    Result res;
-    res.buildMs = builds[1];
+    });
     // Rebuilds after the points moved, the per-frame case of a deforming mesh: the points are
     // scaled about the bounds' centre by 1 + 1e-3 r (r = 1, 2, 3), the data set marked modified
     // and BuildLocator() called without FreeSearchStructure (a locator keeps whatever storage it
@@ -225,9 +231,7 @@ int main(int argc, char* argv[])
     // before the queries.
     if (original)
     {
-      std::vector<double> rebuilds;
-      for (int r = 1; r <= 3; ++r)
-      {
+      res.rebuildMs = medianBuildMs([&](int r) {
         const double s = 1.0 + 1e-3 * r;
         for (vtkIdType i = 0; i < moved->GetNumberOfPoints(); ++i)
         {
@@ -239,12 +243,7 @@ int main(int argc, char* argv[])
         }
         moved->Modified();
         ds->Modified();
-        const double t0 = Now();
-        loc->BuildLocator();
-        rebuilds.push_back((Now() - t0) * 1e3);
-      }
-      std::sort(rebuilds.begin(), rebuilds.end());
-      res.rebuildMs = rebuilds[1];
+      });
       moved->DeepCopy(original);
       moved->Modified();
       ds->Modified();
