@@ -60,6 +60,8 @@ int chooseHeight(TreeKind kind, Vec3 rootExtent, double medianExtent, double lea
 void MatrixTree::buildWalkCaches(int threads) {
   leafMask_.clear();
   levelBits_.clear();
+  blockEmpty_.clear();
+  blockLevels_ = 0;
   denseLevels_ = 0;
   if (empty_) return;
   // Dense bits of the upper levels, from the root down while they stay no larger than the
@@ -113,6 +115,63 @@ void MatrixTree::buildWalkCaches(int threads) {
       out[b * 8 + z] = w;
     }
   }
+  buildBlockEmpty();
+}
+
+void MatrixTree::buildBlockEmpty() {
+  // nodeOf() needs every level's nodes to lie inside one 8x8x8 leaf block or to be unions of
+  // whole blocks: per level, the bottom-level cells per node are 2^s[a] along axis a, all s[a]
+  // <= 3 or all >= 3. Octrees with a cubic or a flat root qualify; a regular kd-tree may split
+  // one axis twice in a row near the bottom, and then keeps the searches.
+  const int H = height_;
+  int blockLevel = -1;
+  for (int l = H; l >= 0; --l) {
+    int s[3];
+    for (int a = 0; a < 3; ++a) s[a] = logDims_[H][a] - logDims_[l][a];
+    const bool inside = s[0] <= 3 && s[1] <= 3 && s[2] <= 3, whole = s[0] >= 3 && s[1] >= 3 && s[2] >= 3;
+    if (!inside && !whole) return;
+    if (inside && whole) blockLevel = l;
+  }
+  const int k = H - blockLevel;
+  const std::vector<uint32_t>& ptr = leaves_.pointers();
+  // Bounded work and memory: a byte per pointer-matrix cell and a pass over the levels above.
+  if (blockLevel < 0 || k < 1 || k >= static_cast<int>(group_.size()) || ptr.size() > (size_t{1} << 21)) return;
+  for (int g = 1; g <= k; ++g) {
+    int s[3];
+    for (int a = 0; a < 3; ++a) s[a] = logDims_[H][a] - logDims_[H - g][a];
+    const uint64_t row = (uint64_t{1} << (1 << s[0])) - 1;  // 2^s0 <= 8 bits
+    uint64_t bits = 0;
+    for (int y = 0; y < (1 << s[1]); ++y) bits |= row << (8 * y);
+    group_[g].bits = bits;
+    for (int a = 0; a < 3; ++a) group_[g].low[a] = ~((1 << s[a]) - 1);
+    group_[g].depth = 1 << s[2];
+  }
+  // Top down to the block level: the level of the largest empty node containing each node, or
+  // 0xFF where it exists (a node exists iff its parent does and its own entry says so).
+  std::vector<uint8_t> above(1, 0xFF), here;
+  for (int l = 1; l <= blockLevel; ++l) {
+    const int lx = logDims_[l][0], ly = logDims_[l][1], lz = logDims_[l][2];
+    int sh[3];
+    for (int a = 0; a < 3; ++a) sh[a] = logDims_[l][a] - logDims_[l - 1][a];
+    const int px = logDims_[l - 1][0], py = logDims_[l - 1][1];
+    here.assign(size_t{1} << (lx + ly + lz), 0);
+    for (int z = 0; z < (1 << lz); ++z)
+      for (int y = 0; y < (1 << ly); ++y)
+        for (int x = 0; x < (1 << lx); ++x) {
+          const size_t parent = ((size_t(z >> sh[2]) << py | size_t(y >> sh[1])) << px) | size_t(x >> sh[0]);
+          const int c[3] = {x, y, z};
+          uint8_t v = above[parent];
+          if (v == 0xFF) v = innerExists(l, c) ? uint8_t(0xFF) : static_cast<uint8_t>(l);
+          here[(size_t(z) << ly | size_t(y)) << lx | size_t(x)] = v;
+        }
+    above.swap(here);
+  }
+  // The block level's nodes are the pointer matrix's cells, in its order (x fastest).
+  if (above.size() != ptr.size()) return;
+  for (size_t p = 0; p < ptr.size(); ++p)
+    if (ptr[p] == MT_NULL && above[p] == 0xFF) return;  // an absent block under an existing node
+  blockEmpty_.swap(above);
+  blockLevels_ = k;
 }
 
 size_t MatrixTree::bytes() const {

@@ -460,6 +460,48 @@ TEST_P(RealMeshTree, WalkCachesMirrorTheLevels) {
   EXPECT_TRUE(other.leafMasks().empty()) << "4x4x4 leaf blocks: no masks (the walk reads the ranges)";
 }
 
+// nodeOf (the walk's classification of a bottom-level cell from the masks and the per-block
+// empty levels) gives locate's answer from the root, level, coordinates, existence and range,
+// for every bottom-level cell: at the automatic height and two deeper ones (more levels inside
+// and above the blocks). Octrees over these meshes always qualify; a kd-tree may not (its
+// nodes can straddle leaf blocks), and then the walk keeps the searches.
+TEST_P(RealMeshTree, NodeOfMatchesLocateEverywhere) {
+  for (int extra : {0, 1, 2}) {
+    const MatrixTree t = extra == 0 ? MatrixTree(tree_)
+                                    : mtest::buildTree(mesh_, mtest::options(kind_, tree_.height() + extra));
+    const int H = t.height();
+    if (kind_ == TreeKind::Octree) {
+      ASSERT_TRUE(t.fastNodeOf()) << "height " << H;
+    }
+    if (!t.fastNodeOf()) continue;
+    uint64_t cells = 0, differ = 0, leaves = 0, levels[MT_MAX_LEVELS] = {};
+    mtree::TraversalStats fastStats, searchStats;
+    for (int z = 0; z < t.dim(H, 2); ++z)
+      for (int y = 0; y < t.dim(H, 1); ++y)
+        for (int x = 0; x < t.dim(H, 0); ++x) {
+          const int L[3] = {x, y, z};
+          const mtree::NodeRef a = t.nodeOf(L, &fastStats), b = t.locate(L, 0, H + 1, &searchStats);
+          const bool same = a.level == b.level && a.exists == b.exists && a.c[0] == b.c[0] && a.c[1] == b.c[1] &&
+                            a.c[2] == b.c[2] && (!a.exists || (a.range.begin == b.range.begin && a.range.end == b.range.end));
+          if (!same && differ < 5)
+            ADD_FAILURE() << "height " << H << " cell (" << x << ", " << y << ", " << z << "): nodeOf level " << a.level
+                          << " exists " << a.exists << ", locate level " << b.level << " exists " << b.exists;
+          differ += !same;
+          leaves += b.exists;
+          ++levels[b.level];
+          ++cells;
+        }
+    EXPECT_EQ(differ, 0u) << "height " << H << ", " << cells << " cells";
+    EXPECT_EQ(leaves, t.numLeaves());
+    // The answers span the levels: leaves, empty cells beside them, and large empty nodes.
+    EXPECT_GT(levels[H], leaves) << "empty bottom-level cells next to leaves";
+    int emptyLevels = 0;
+    for (int l = 1; l < H; ++l) emptyLevels += levels[l] > 0;
+    EXPECT_GE(emptyLevels, 2) << "height " << H;
+    EXPECT_LT(fastStats.nodeVisits, searchStats.nodeVisits) << "height " << H;
+  }
+}
+
 // BoundingBox mode references every leaf its box touches: a superset of Exact, leaf by leaf.
 TEST_P(RealMeshTree, BoundingBoxModeIsASupersetOfExact) {
   mtree::BuildOptions opt = mtest::options(kind_);

@@ -15,7 +15,12 @@
 // The ray walk probes existence at every step, so the tree keeps two derived copies of it that
 // fit in cache (buildWalkCaches(), after every build): one bit per entry of each 8x8x8 leaf
 // block, and dense bits for the small upper levels. They answer the same questions as the
-// block-sparse levels, bit for bit (test_matrix_tree WalkCachesMirrorTheLevels).
+// block-sparse levels, bit for bit (test_matrix_tree WalkCachesMirrorTheLevels). Where every
+// level's nodes either lie inside one leaf block or are unions of whole blocks (octrees with
+// 8x8x8 leaf blocks), a third copy, a byte per leaf-level pointer-matrix cell, gives the level
+// of the largest empty node around each absent block: nodeOf() then classifies any bottom-level
+// cell from one pointer read and its block's mask words, where locate() binary searches the
+// levels, so a ray steps across empty space without a search per step.
 #pragma once
 
 #include <array>
@@ -129,7 +134,17 @@ class MatrixTree {
   /// inner levels' bytes, which are a small part of the tree): a probe during the walk is one
   /// word read from a small array that stays in cache. Levels below use the block-sparse bytes.
   int denseLevels() const { return denseLevels_; }
-  size_t walkCacheBytes() const { return (leafMask_.size() + levelBits_.size()) * sizeof(uint64_t); }
+  size_t walkCacheBytes() const {
+    return (leafMask_.size() + levelBits_.size()) * sizeof(uint64_t) + blockEmpty_.size();
+  }
+  /// Whether nodeOf() is available (the walk caches hold the per-block empty levels).
+  bool fastNodeOf() const { return !blockEmpty_.empty(); }
+  /// locate(L, 0, H + 1)'s answer (the leaf at bottom-level cell L, or the largest empty node
+  /// containing L) from the walk caches: one pointer read and the block's occupancy masks, a
+  /// byte of blockEmpty_ where the block is absent. Only where fastNodeOf(); L in range.
+  /// Counted as one node visit for a leaf, two for an empty cell (the masks' probes of L's
+  /// ancestors read one cache line, the block's, and count as one).
+  NodeRef nodeOf(const int L[3], TraversalStats* st) const;
   /// Does inner node c of level l < H exist? The dense bits where they are kept, else one
   /// block-sparse access.
   bool innerExists(int level, const int c[3]) const {
@@ -248,6 +263,25 @@ class MatrixTree {
   LargeVector<uint32_t> prims_;
   std::vector<uint64_t> leafMask_;  // see leafMasks()
   std::vector<uint64_t> levelBits_;  // see innerExists()
+  // nodeOf(): per leaf-level pointer-matrix cell whose block is absent, the level of the largest
+  // empty node containing the block (0xFF where the block exists); and for k = 1 ...
+  // blockLevels_, the bits of L's ancestor at level H - k within its block's mask words (for L at
+  // (0, 0, 0) of the block; shifted by the low coordinates L keeps), the AND-masks that clear
+  // the coordinate bits below that ancestor, and the number of z-slices (mask words) it spans.
+  // Level H - blockLevels_ is the block itself.
+  std::vector<uint8_t> blockEmpty_;
+  struct BlockGroup {
+    uint64_t bits = 0;
+    int low[3] = {0, 0, 0};
+    int depth = 0;
+  };
+  std::array<BlockGroup, 10> group_{};
+  int blockLevels_ = 0;
+  /// Fills blockEmpty_ and group_ after the leaf masks (leaves them empty where not applicable).
+  void buildBlockEmpty();
+  /// nodeOf() below an empty bottom-level cell L of an allocated block with mask words w: the
+  /// first ancestor, from level H - k0 up, with a leaf under it; its child on L's path.
+  NodeRef emptyInBlock(const int L[3], const uint64_t* w, int k0, TraversalStats* st) const;
   struct DenseLevel {
     size_t offset = 0;  // first word of the level in levelBits_
     int lx = 0, ly = 0;  // log2 of the level's node counts along x and y
@@ -380,6 +414,52 @@ inline NodeRef MatrixTree::searchAbove(const int L[3], int hi, TraversalStats* s
   return locate(L, lo, hi, st);
 }
 
+inline NodeRef MatrixTree::emptyInBlock(const int L[3], const uint64_t* w, int k0, TraversalStats* st) const {
+  const int x = L[0] & 7, y = L[1] & 7, z = L[2] & 7;
+  // One node visit for all the probes: they read the block's mask words, one cache line.
+  if (st) ++st->nodeVisits;
+  for (int k = k0; k <= blockLevels_; ++k) {
+    const BlockGroup& g = group_[k];
+    const uint64_t bits = g.bits << ((x & g.low[0]) + 8 * (y & g.low[1]));
+    const int z0 = z & g.low[2];
+    uint64_t any = 0;
+    for (int q = 0; q < g.depth; ++q) any |= w[z0 + q];
+    if (any & bits) {
+      // The ancestor at level H - k holds a leaf, so it exists; its child on L's path does not.
+      NodeRef r;
+      r.level = height_ - k + 1;
+      ancestor(L, r.level, r.c);
+      return r;
+    }
+  }
+  // A block without leaves (not built by the builders): its node is absent, search above it.
+  return searchAbove(L, height_ - blockLevels_, st);
+}
+
+inline NodeRef MatrixTree::nodeOf(const int L[3], TraversalStats* st) const {
+  const size_t p = leaves_.pointerIndex(L[0], L[1], L[2]);
+  const uint32_t b = leaves_.pointers()[p];
+  if (st) ++st->nodeVisits;  // the pointer and the cell's bit: as one leaf access
+  if (b == MT_NULL) {
+    if (st) ++st->nodeVisits;  // the block's empty level
+    NodeRef r;
+    r.level = blockEmpty_[p];
+    ancestor(L, r.level, r.c);
+    return r;
+  }
+  const uint64_t* w = leafMask_.data() + size_t(b) * 8;
+  const uint32_t local = leaves_.localIndex(L[0], L[1], L[2]);
+  if ((w[local >> 6] >> (local & 63)) & 1u) {
+    NodeRef r;
+    r.range = leaves_.data()[size_t(b) * 512 + local];
+    r.level = height_;
+    for (int a = 0; a < 3; ++a) r.c[a] = L[a];
+    r.exists = true;
+    return r;
+  }
+  return emptyInBlock(L, w, 1, st);
+}
+
 inline int MatrixTree::bottomCell(const int L[3], MtLeafRange& r, TraversalStats* st) const {
   const int H = height_;
   if (st) ++st->nodeVisits;
@@ -444,7 +524,8 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
     for (int a = 0; a < 3; ++a)
       L[a] = cellIndexNonNegative(p[a] * invLeaf_[a], 0, dim(H, a) - 1);
   }
-  NodeRef n = locate(L, 0, H + 1, st);
+  const bool fast = fastNodeOf();
+  NodeRef n = fast ? nodeOf(L, st) : locate(L, 0, H + 1, st);
   double tEnter = t0;
   // +inf on the axes the ray does not move along, so every axis has an exit plane.
   double never[3];
@@ -487,7 +568,7 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
         n.exists = cell > 0;
         if (cell >= 0) continue;
         // The parent is absent: the largest empty node containing L, above level H - 1.
-        n = searchAbove(L, H - 1, st);
+        n = fast ? nodeOf(L, st) : searchAbove(L, H - 1, st);
         if (n.level != H) break;
       }
       continue;  // n is now a larger empty node containing L: the general step below
@@ -512,7 +593,7 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
       const int lo = n.c[a] << s, hi = ((n.c[a] + 1) << s) - 1;
       L[a] = cellIndexNonNegative((ol[a] + d[a] * tExit) * invLeaf_[a], lo, hi);
     }
-    n = neighbourFind(n, exitAxis, dir, L, st);
+    n = fast ? nodeOf(L, st) : neighbourFind(n, exitAxis, dir, L, st);
     if (n.level < 0) return;
     tEnter = tExit;
   }
