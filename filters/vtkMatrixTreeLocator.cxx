@@ -581,6 +581,12 @@ public:
     const mtree::Vec3 e = o + d;
     this->Mag = std::max({ std::fabs(o.x), std::fabs(o.y), std::fabs(o.z), std::fabs(e.x), std::fabs(e.y),
       std::fabs(e.z) });
+    // Per ray, not per leaf: the direction's reciprocals (0 on an axis the segment does not
+    // move along).
+    for (int a = 0; a < 3; ++a)
+    {
+      this->Inv[a] = d[a] != 0 ? 1.0 / d[a] : 0.0;
+    }
   }
 
   // The candidates of the leaf whose references start at `ids` that the segment may hit in
@@ -595,13 +601,13 @@ public:
     }
     const mtree::MatrixTree& tree = this->In.Tree;
     const mtree::Box& root = tree.rootBox();
-    const mtree::Vec3 cs = tree.cellSize(this->H);
+    const mtree::Vec3 il = tree.inverseLeafSize();
     const double tm = 0.5 * (tEnter + tExit);
     const mtree::Vec3 p = this->O + this->D * tm;
     int L[3];
     for (int a = 0; a < 3; ++a)
     {
-      L[a] = mtree::cellIndexNonNegative((p[a] - root.lo[a]) / cs[a], 0, tree.dim(this->H, a) - 1);
+      L[a] = mtree::cellIndexNonNegative((p[a] - root.lo[a]) * il[a], 0, tree.dim(this->H, a) - 1);
     }
     MtLeafRange r;
     const uint32_t begin = static_cast<uint32_t>(ids - this->Prims);
@@ -614,8 +620,10 @@ public:
     const double mag = std::max({ this->Mag, std::fabs(lb.lo.x), std::fabs(lb.lo.y), std::fabs(lb.lo.z),
       std::fabs(lb.hi.x), std::fabs(lb.hi.y), std::fabs(lb.hi.z) });
     // Per axis: t of quantized coordinate q is A + q B (moving axes), within +-M; a static
-    // axis needs its coordinate's q within [qlo, qhi] grown by the margin.
-    double A[3], B[3], M[3], SLo[3], SHi[3], Margin[3];
+    // axis needs its coordinate's q within [qlo, qhi] grown by the margin. One division per
+    // axis (the quantum's reciprocal): the products that replace quotients differ from them by
+    // an ulp or two, a relative 1e-15 against margins of 1e-7 of the leaf and 1e-3 of a quantum.
+    double A[3], B[3], M[3], SLo[3], SHi[3], Margin[3], PerUnit[3];
     bool moving[3];
     bool anyStatic = false;
     for (int a = 0; a < 3; ++a)
@@ -625,13 +633,14 @@ public:
       {
         return -1;
       }
-      const double unit = w / 255.0;
+      const double unit = w * (1.0 / 255.0);
+      PerUnit[a] = 255.0 / w;
       const double margin = 1e-7 * w + 16 * eps * mag; // world units
       Margin[a] = margin;
       moving[a] = this->D[a] != 0;
       if (moving[a])
       {
-        const double inv = 1.0 / this->D[a];
+        const double inv = this->Inv[a];
         A[a] = (lb.lo[a] - this->O[a]) * inv;
         B[a] = unit * inv;
         M[a] = margin * std::fabs(inv) + 8 * eps * (std::fabs(A[a]) + 255 * std::fabs(B[a]));
@@ -643,7 +652,7 @@ public:
       else
       {
         anyStatic = true;
-        const double q = (this->O[a] - lb.lo[a]) / unit, mq = margin / unit + 1e-9;
+        const double q = (this->O[a] - lb.lo[a]) * PerUnit[a], mq = margin * PerUnit[a] + 1e-9;
         SLo[a] = q - mq; // passes when qhi >= SLo and qlo <= SHi
         SHi[a] = q + mq;
       }
@@ -674,17 +683,18 @@ public:
     uint8_t qmin[3], qmax[3];
     for (int a = 0; a < 3; ++a)
     {
-      const double unit = (lb.hi[a] - lb.lo[a]) / 255.0;
-      const double q0 = (this->O[a] + this->D[a] * ta - lb.lo[a]) / unit;
-      const double q1 = (this->O[a] + this->D[a] * tb - lb.lo[a]) / unit;
-      const double mq = Margin[a] / unit + 1e-3;
+      const double q0 = (this->O[a] + this->D[a] * ta - lb.lo[a]) * PerUnit[a];
+      const double q1 = (this->O[a] + this->D[a] * tb - lb.lo[a]) * PerUnit[a];
+      const double mq = Margin[a] * PerUnit[a] + 1e-3;
       const double lo = std::min(q0, q1) - mq, hi = std::max(q0, q1) + mq;
-      // floor(lo) and ceil(hi) by truncation, exact for the positive values they are taken of
-      // (std::floor and std::ceil are libm calls in a build without SSE4.1).
-      const int tl = lo > 0 ? (lo < 255 ? static_cast<int>(lo) : 255) : 0;
-      const int th = hi > 0 ? (hi < 255 ? static_cast<int>(hi) : 255) : 0;
-      qmin[a] = static_cast<uint8_t>(tl);
-      qmax[a] = static_cast<uint8_t>(hi < 255 ? th + (th < hi ? 1 : 0) : 255);
+      // floor(lo) and ceil(hi), clamped to [0, 255], by truncation of the clamped values (floor
+      // for non-negatives; std::floor and std::ceil are libm calls in a build without SSE4.1),
+      // without branches on where the segment lies (coin flips). A NaN gives the full range:
+      // max(0, NaN) is 0 and min(255, NaN) is 255 in this argument order.
+      const double l = std::min(255.0, std::max(0.0, lo)), h = std::max(0.0, std::min(255.0, hi));
+      const int th = static_cast<int>(h);
+      qmin[a] = static_cast<uint8_t>(static_cast<int>(l));
+      qmax[a] = static_cast<uint8_t>(th + (th < h ? 1 : 0));
     }
     const ByteBoxTest boxTest(qmax, qmin, count);
     constexpr uint32_t kChunk = 64;
@@ -741,6 +751,7 @@ private:
   size_t NumPrims = 0;
   int H = 0;
   double Mag = 0;
+  double Inv[3] = { 0, 0, 0 };
   bool Enabled = false;
 };
 

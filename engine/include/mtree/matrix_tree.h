@@ -113,6 +113,8 @@ class MatrixTree {
   bool empty() const { return empty_; }
   const Box& rootBox() const { return root_; }
   Vec3 cellSize(int level) const { return cellSize_[level]; }
+  /// 1 / the bottom level's cell size per axis, as leafCoords() and the ray walk use it.
+  Vec3 inverseLeafSize() const { return invLeaf_; }
   int logDim(int level, int axis) const { return logDims_[level][axis]; }
   int dim(int level, int axis) const { return 1 << logDims_[level][axis]; }
   int blockEdge() const { return blockEdge_; }
