@@ -35,6 +35,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -359,6 +360,45 @@ private:
 #endif
 };
 
+// Query statistics (GetQueryStatistic): compiled in with -DMATRIXTREE_QUERY_STATS=ON only.
+enum QueryStat
+{
+  kFcQueries,
+  kFcLeafScans,
+  kFcReferences,
+  kFcBoxPasses,
+  kFcEvaluations,
+  kFcFound,
+  kRayQueries,
+  kRaySteps,
+  kRayNodeVisits,
+  kRayLeaves,
+  kRayReferences,
+  kRayCandidates,
+  kRayCellTests,
+  kRayMailboxRepeats,
+  kRayProvedMisses,
+  kRayCertainHits,
+  kRayVtkCalls,
+  kRayHits,
+  kNumQueryStats
+};
+const char* const kQueryStatNames[kNumQueryStats] = { "findcell_queries", "findcell_leaf_scans",
+  "findcell_references", "findcell_box_passes", "findcell_evaluations", "findcell_found", "ray_queries",
+  "ray_steps", "ray_node_visits", "ray_leaves", "ray_references", "ray_candidates", "ray_cell_tests",
+  "ray_mailbox_repeats", "ray_proved_misses", "ray_certain_hits", "ray_vtk_calls", "ray_hits" };
+#if defined(MATRIXTREE_QUERY_STATS) && MATRIXTREE_QUERY_STATS
+constexpr bool kQueryStats = true;
+std::atomic<uint64_t> gQueryStats[kNumQueryStats];
+inline void CountQuery(QueryStat s, uint64_t n = 1)
+{
+  gQueryStats[s].fetch_add(n, std::memory_order_relaxed);
+}
+#else
+constexpr bool kQueryStats = false;
+inline void CountQuery(QueryStat, uint64_t = 1) {}
+#endif
+
 // vtkTetra::EvaluatePosition accepts barycentric coordinates within this of [0, 1].
 constexpr double kTetraTolerance = 1e-3;
 
@@ -405,6 +445,8 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     qc[a] = static_cast<uint8_t>(static_cast<int>(q[a]) + (static_cast<int>(q[a]) < q[a] ? 1 : 0));
   }
   const ByteBoxTest boxTest(qf, qc, r.end - k);
+  CountQuery(kFcLeafScans);
+  CountQuery(kFcReferences, r.end - k);
   // The candidates whose box holds the point are gathered first (in the leaf's order: ascending
   // ids, so the first that contains the point is still the answer), a whole leaf of up to kChunk
   // references at once, then the point ids of up to kIdsAhead of them are prefetched, then the
@@ -421,6 +463,7 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
     PrefetchLines(boxes + 6 * static_cast<size_t>(k) + 64, boxes + 6 * static_cast<size_t>(stop));
     PrefetchLines(reinterpret_cast<const char*>(ids + k) + 64, ids + stop);
     const int nc = boxTest.gather(boxes, k, stop, cand);
+    CountQuery(kFcBoxPasses, static_cast<uint64_t>(nc));
     for (int j = 0; j < nc; ++j)
     {
       cand[j] = ids[cand[j]];
@@ -448,8 +491,10 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
       {
         in.Cells.prefetchPoints(cand[j + kAhead]);
       }
+      CountQuery(kFcEvaluations);
       if (CellContains(ds, in, x, cand[j], cell, pcoords, weights, engineEval))
       {
+        CountQuery(kFcFound);
         return cand[j];
       }
     }
@@ -1137,6 +1182,7 @@ vtkIdType vtkMatrixTreeLocator::FindCell(
     return -1;
   }
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
+  CountQuery(kFcQueries);
   const mtree::NodeRef n = in.Tree.leafHolding(mtree::Vec3(x));
   if (!n.exists)
   {
@@ -1165,6 +1211,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     return 0;
   }
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
+  CountQuery(kRayQueries);
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
   const mtree::SegmentFrame frame(o, mtree::Vec3(p2), tol);
   double best = VTK_DOUBLE_MAX, tt, xx[3], pc[3];
@@ -1197,9 +1244,11 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     // boxTest: whether the cell's own bounds are tested first (not needed after the leaf's
     // quantized boxes, which reject as much: a random read saved per candidate).
     auto test = [&](vtkIdType id, bool boxTest) {
+      CountQuery(kRayCellTests);
       vtkIdType& slot = mailbox[id & 63];
       if (slot == id)
       {
+        CountQuery(kRayMailboxRepeats);
         return;
       }
       slot = id;
@@ -1225,10 +1274,12 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc, &face);
       if (verdict == mtree::CellVerdict::kMiss)
       {
+        CountQuery(kRayProvedMisses);
         return;
       }
       if (verdict == mtree::CellVerdict::kCertain)
       {
+        CountQuery(kRayCertainHits);
         if (tc < deferredT)
         {
           deferredT = tc;
@@ -1239,6 +1290,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       }
       FillCell(this->DataSet, in, id, cell);
       filled = id;
+      CountQuery(kRayVtkCalls);
       if (cell->IntersectWithLine(p1, p2, tol, tt, xx, pc, sid) && tt < best)
       {
         best = tt;
@@ -1249,6 +1301,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       }
     };
     const uint32_t* prims = in.Tree.primitiveIndices().data();
+    mtree::TraversalStats walk;
     in.Tree.traverseRay(
       o, d, 0.0, 1.0,
       [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit) {
@@ -1262,6 +1315,8 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
           const uint8_t* lb = in.LeafBoxes.data() + 6 * first;
           PrefetchLines(lb, lb + 6 * static_cast<size_t>(count));
         }
+        CountQuery(kRayLeaves);
+        CountQuery(kRayReferences, count);
         LeafSegmentFilter::Candidate* cand = stackBuf;
         if (count > 256)
         {
@@ -1270,6 +1325,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         }
         const int nc =
           leafFilter.candidates(ids, count, tEnter, tExit, std::min({ best, deferredT, 1.0 }), cand);
+        CountQuery(kRayCandidates, nc < 0 ? count : static_cast<uint64_t>(nc));
         if (nc < 0)
         {
           for (uint32_t k = 0; k < count; ++k)
@@ -1304,13 +1360,16 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         }
         return (bestId >= 0 || deferredId >= 0) && std::min(best, deferredT) <= tExit;
       },
-      nullptr);
+      kQueryStats ? &walk : nullptr);
+    CountQuery(kRaySteps, walk.cells);
+    CountQuery(kRayNodeVisits, walk.nodeVisits);
     if (deferredId < 0 || (bestId >= 0 && best <= deferredT))
     {
       break;
     }
     FillCell(this->DataSet, in, deferredId, cell);
     filled = deferredId;
+    CountQuery(kRayVtkCalls);
     // A hexahedron, wedge or tetrahedron whose hit face is known: VTK's test of that face alone
     // gives its answer. (A tetrahedron's face is found here, for the winner only.)
     if (deferredFace < 0 && tol == 0.0)
@@ -1336,6 +1395,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   {
     return 0;
   }
+  CountQuery(kRayHits);
   t = best;
   cellId = bestId;
   if (filled != bestId) // the winner is usually the last cell VTK evaluated: already there
@@ -2282,4 +2342,40 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
     os << indent << "MemorySize: " << this->GetMemorySize() << " bytes\n";
     os << indent << "LastBuildTime: " << this->GetLastBuildTime() << " ms\n";
   }
+}
+
+//------------------------------------------------------------------------------
+bool vtkMatrixTreeLocator::QueryStatisticsEnabled()
+{
+  return kQueryStats;
+}
+
+int vtkMatrixTreeLocator::GetNumberOfQueryStatistics()
+{
+  return kQueryStats ? kNumQueryStats : 0;
+}
+
+const char* vtkMatrixTreeLocator::GetQueryStatisticName(int i)
+{
+  return i >= 0 && i < GetNumberOfQueryStatistics() ? kQueryStatNames[i] : nullptr;
+}
+
+vtkTypeUInt64 vtkMatrixTreeLocator::GetQueryStatistic(int i)
+{
+#if defined(MATRIXTREE_QUERY_STATS) && MATRIXTREE_QUERY_STATS
+  return i >= 0 && i < kNumQueryStats ? gQueryStats[i].load(std::memory_order_relaxed) : 0;
+#else
+  (void)i;
+  return 0;
+#endif
+}
+
+void vtkMatrixTreeLocator::ResetQueryStatistics()
+{
+#if defined(MATRIXTREE_QUERY_STATS) && MATRIXTREE_QUERY_STATS
+  for (auto& c : gQueryStats)
+  {
+    c.store(0, std::memory_order_relaxed);
+  }
+#endif
 }

@@ -392,6 +392,27 @@ public:
   /** Copies the settings (not the tree), Backend and OpenCLDevice included, of another locator. */
   void CopySettings(vtkMatrixTreeLocator* other);
 
+  ///@{
+  /**
+   * Query statistics, for diagnosing what a query costs: counters summed over every locator and
+   * thread since the last ResetQueryStatistics(). FindCell: "findcell_queries", and per scan of
+   * a leaf "findcell_leaf_scans", "findcell_references" (the leaf's), "findcell_box_passes"
+   * (references whose quantized box holds the point), "findcell_evaluations" (cells tested
+   * exactly), "findcell_found". IntersectWithLine (first hit): "ray_queries", "ray_steps" and
+   * "ray_node_visits" (the walk's, as MatrixTree::traverseRay counts them), "ray_leaves",
+   * "ray_references", "ray_candidates" (after the leaf's box filter), "ray_cell_tests" (with
+   * "ray_mailbox_repeats", cells met again in a later leaf and skipped), "ray_proved_misses", "ray_certain_hits", "ray_vtk_calls",
+   * "ray_hits". Kept only in a build configured with -DMATRIXTREE_QUERY_STATS=ON (one relaxed
+   * atomic add per event, too slow for timing); otherwise QueryStatisticsEnabled() is false
+   * and GetNumberOfQueryStatistics() 0.
+   */
+  static bool QueryStatisticsEnabled();
+  static int GetNumberOfQueryStatistics();
+  static const char* GetQueryStatisticName(int i);
+  static vtkTypeUInt64 GetQueryStatistic(int i);
+  static void ResetQueryStatistics();
+  ///@}
+
 protected:
   vtkMatrixTreeLocator();
   ~vtkMatrixTreeLocator() override;

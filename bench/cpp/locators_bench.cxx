@@ -292,6 +292,7 @@ int main(int argc, char* argv[])
     res.found.resize(static_cast<size_t>(nPts));
     auto* mloc = vtkMatrixTreeLocator::SafeDownCast(loc);
     res.opencl = mloc && mloc->GetBackend() == vtkMatrixTreeLocator::OPENCL;
+    vtkMatrixTreeLocator::ResetQueryStatistics();
     // Batched FindCells (ids only) with nt host threads: one warm-up call, then best of 3.
     auto runBatch = [&](int nt) {
       mloc->SetNumberOfThreads(nt);
@@ -371,6 +372,16 @@ int main(int argc, char* argv[])
         loc->IntersectWithLine(&seg[6 * i], &seg[6 * i + 3], 0.0, t, x, pc, sub, cid, gc);
       res.raysPerS = std::max(res.raysPerS, nRays / (Now() - t0));
       res.raysPerCpuS = std::max(res.raysPerCpuS, nRays / (ThreadCpuNow() - c0));
+    }
+    if (mloc && vtkMatrixTreeLocator::QueryStatisticsEnabled())
+    {
+      // A build with -DMATRIXTREE_QUERY_STATS=ON: what this locator's queries did (every
+      // FindCell and ray loop above), as totals, to stderr (the JSON rows stay as they are).
+      std::fprintf(stderr, "{\"query_stats\": \"%s\"", e.name);
+      for (int i = 0; i < vtkMatrixTreeLocator::GetNumberOfQueryStatistics(); ++i)
+        std::fprintf(stderr, ", \"%s\": %llu", vtkMatrixTreeLocator::GetQueryStatisticName(i),
+          static_cast<unsigned long long>(vtkMatrixTreeLocator::GetQueryStatistic(i)));
+      std::fprintf(stderr, "}\n");
     }
     results.push_back(std::move(res));
   }

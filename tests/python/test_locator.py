@@ -464,3 +464,38 @@ def test_ray_hit_values_are_vtks_own(grid):
         assert gc2.IntersectWithLine(list(p1), list(p2), 0.0, t2, x2, pc2, sub2)
         assert (float(t), x, pc, int(sub)) == (float(t2), x2, pc2, int(sub2)), (i, list(p1), list(p2), int(cid))
     assert hits > n // 2
+
+
+def test_query_statistics_count_what_the_queries_did():
+    # Off in a default build (no counters compiled in); in a build configured with
+    # -DMATRIXTREE_QUERY_STATS=ON the counters must agree with what the queries returned.
+    names = [vtkMatrixTreeLocator.GetQueryStatisticName(i)
+             for i in range(vtkMatrixTreeLocator.GetNumberOfQueryStatistics())]
+    if not vtkMatrixTreeLocator.QueryStatisticsEnabled():
+        assert names == []
+        assert vtkMatrixTreeLocator.GetQueryStatistic(0) == 0
+        return
+    ds = matrixtree.read_grid(os.path.join(CFD, "brick_tets.su2"))
+    loc = build(vtkMatrixTreeLocator, ds)
+    vtkMatrixTreeLocator.ResetQueryStatistics()
+    gc = vtkGenericCell()
+    pc, w = [0.0] * 3, [0.0] * 8
+    pts = random_points(ds, 2000, seed=5, grow=0.2)
+    found = sum(loc.FindCell(list(p), 0.0, gc, pc, w) >= 0 for p in pts)
+    rng = np.random.default_rng(6)
+    hits = 0
+    for a, b in zip(pts[:500], pts[500:1000] + rng.normal(size=(500, 3))):
+        t, x, pcs, sub, cid = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0), reference(0)
+        hits += loc.IntersectWithLine(list(a), list(b), 0.0, t, x, pcs, sub, cid, gc)
+    s = {n: vtkMatrixTreeLocator.GetQueryStatistic(i) for i, n in enumerate(names)}
+    assert s["findcell_queries"] == len(pts)
+    assert s["findcell_found"] == found > 0
+    assert s["findcell_found"] <= s["findcell_evaluations"] <= s["findcell_box_passes"] <= s["findcell_references"]
+    assert s["findcell_leaf_scans"] <= s["findcell_queries"]
+    assert s["ray_queries"] == 500
+    assert s["ray_hits"] == hits > 0
+    assert s["ray_leaves"] <= s["ray_steps"] <= s["ray_node_visits"]
+    assert s["ray_candidates"] <= s["ray_references"]
+    assert s["ray_proved_misses"] + s["ray_certain_hits"] + s["ray_mailbox_repeats"] <= s["ray_cell_tests"]
+    vtkMatrixTreeLocator.ResetQueryStatistics()
+    assert all(vtkMatrixTreeLocator.GetQueryStatistic(i) == 0 for i in range(len(names)))
