@@ -127,15 +127,18 @@ inline void prefetchPrimitive(const P& prims, size_t i) {
 }
 
 /// Per-reference data that is three per-axis parts, each depending on the primitive and the
-/// leaf's interval on that axis only: fn.axis(uint8_t* out, prim, a, leafLo, leafHi) writes
-/// Bytes / 3 bytes, and the reference's data is the parts of axes 0, 1, 2 in a row. The counting
-/// build's scatter then computes each part once per cell and candidate row/column/slab (a few
-/// per axis) and copies three parts per reference, instead of calling fn per reference.
+/// leaf's interval on that axis only: fn.axisKey(leafLo, leafHi) -> double is a value of the
+/// interval alone, which the builder computes once per build for every leaf interval of each
+/// axis, and fn.axis(uint8_t* out, prim, a, leafLo, key) writes Bytes / 3 bytes from it; the
+/// reference's data is the parts of axes 0, 1, 2 in a row. The counting build's scatter then
+/// computes each part once per cell and candidate row/column/slab (a few per axis) and copies
+/// three parts per reference, instead of calling fn per reference.
 template <class F, class P, class = void>
 struct HasAxisData : std::false_type {};
 template <class F, class P>
 struct HasAxisData<F, P,
-                   std::void_t<decltype(std::declval<F&>().axis(std::declval<uint8_t*>(), std::declval<const P&>(), 0,
+                   std::void_t<decltype(std::declval<F&>().axisKey(0.0, 0.0)),
+                               decltype(std::declval<F&>().axis(std::declval<uint8_t*>(), std::declval<const P&>(), 0,
                                                                 0.0, 0.0))>> : std::true_type {};
 
 /// Primitives that give their points (prim.vertices(Vec3* out) -> count, at most 8; 0 when
@@ -773,6 +776,24 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
     constexpr size_t axisBytes = Bytes / 3;
     // Per-axis parts of a cell's candidate range, kept for ranges up to this many leaves per axis.
     constexpr int kAxisTable = 32;
+    // Every leaf interval's lower end and key, per axis (fn.axisKey once per interval and build,
+    // not once per cell and interval: it divides), up to 2^16 intervals per axis.
+    std::vector<double> intervalLo[3], intervalKey[3];
+    [[maybe_unused]] bool keyed = false;
+    if constexpr (byAxis) {
+      const int dims[3] = {nx, ny, nz};
+      keyed = nx <= 65536 && ny <= 65536 && nz <= 65536;
+      for (int a = 0; keyed && a < 3; ++a) {
+        intervalLo[a].resize(size_t(dims[a]));
+        intervalKey[a].resize(size_t(dims[a]));
+        for (int c = 0; c < dims[a]; ++c) {
+          // leafBox's arithmetic: org + c * size to org + (c + 1) * size.
+          const double lo = org[a] + c * leafSize[a], hi = org[a] + (c + 1) * leafSize[a];
+          intervalLo[a][size_t(c)] = lo;
+          intervalKey[a][size_t(c)] = fn.axisKey(lo, hi);
+        }
+      }
+    }
     std::atomic<int64_t> taken{0};  // fromBothEnds' chunks
 #pragma omp parallel num_threads(threads)
     {
@@ -802,8 +823,14 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
           if (hi[0] - lo[0] < kAxisTable && hi[1] - lo[1] < kAxisTable && hi[2] - lo[2] < kAxisTable) {
             // The leaf's interval on axis a is leafBox's: org + c * size to org + (c + 1) * size.
             for (int a = 0; a < 3; ++a)
-              for (int c = lo[a]; c <= hi[a]; ++c)
-                f.axis(table[a][c - lo[a]], prim, a, org[a] + c * leafSize[a], org[a] + (c + 1) * leafSize[a]);
+              for (int c = lo[a]; c <= hi[a]; ++c) {
+                if (keyed) {
+                  f.axis(table[a][c - lo[a]], prim, a, intervalLo[a][size_t(c)], intervalKey[a][size_t(c)]);
+                } else {
+                  const double l = org[a] + c * leafSize[a], h = org[a] + (c + 1) * leafSize[a];
+                  f.axis(table[a][c - lo[a]], prim, a, l, f.axisKey(l, h));
+                }
+              }
             forEachLeafIn(i, prim, lo, hi, [&](int x, int y, int z) {
               uint8_t* o = out + size_t(takeSlot(x, y, z)) * Bytes;
               std::memcpy(o, table[0][x - lo[0]], axisBytes);

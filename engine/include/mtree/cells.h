@@ -531,14 +531,16 @@ struct LeafBoxQuantizer {
   uint8_t bytes[3][kSlots][2];
   int used[3] = {0, 0, 0};
 
-  /// One axis's two bytes (q[0], q[1]) for the leaf interval [lo, hi] on axis a: the builder's
-  /// counting scatter calls this once per cell and candidate leaf row/column/slab and copies the
-  /// three axes' bytes to each reference (see detail::HasAxisData); the same bytes as operator().
-  void axis(uint8_t* q, const CellSet::Local& c, int a, double lo, double hi) {
+  /// The leaf interval [lo, hi]'s key for axis(): its scale, 255 / (hi - lo), as operator()
+  /// computes it. The builder computes it once per interval and build.
+  static double axisKey(double lo, double hi) { return 255.0 / (hi - lo); }
+  /// One axis's two bytes (q[0], q[1]) for the leaf interval starting at lo on axis a, with
+  /// scale = axisKey(lo, hi): the builder's counting scatter calls this once per cell and
+  /// candidate leaf row/column/slab and copies the three axes' bytes to each reference (see
+  /// detail::HasAxisData); the same bytes as operator().
+  void axis(uint8_t* q, const CellSet::Local& c, int a, double lo, double scale) {
     startCell(c);
-    // The division every time: consecutive leaves' widths differ by round-off often enough
-    // that a branch on a cached width was mispredicted more than a division costs.
-    detail::quantizeLeafAxis(c.box.lo[a], c.box.hi[a], pad, lo, 255.0 / (hi - lo), q);
+    detail::quantizeLeafAxis(c.box.lo[a], c.box.hi[a], pad, lo, scale, q);
   }
 
   void operator()(uint8_t* q, const CellSet::Local& c, const Box& leaf) {
