@@ -435,7 +435,7 @@ vtkIdType ScanCandidates(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in
   double q[3];
   for (int a = 0; a < 3; ++a)
   {
-    q[a] = std::min(255.0, std::max(0.0, (x[a] - lb.lo[a]) * (255.0 / (lb.hi[a] - lb.lo[a]))));
+    q[a] = std::min(255.0, std::max(0.0, (x[a] - lb.lo[a]) * mtree::detail::leafBoxScale(lb.lo[a], lb.hi[a])));
   }
   // q inside [lo, hi] (integers) is floor(q) >= lo and ceil(q) <= hi: the test in bytes.
   uint8_t qf[3], qc[3];

@@ -483,6 +483,10 @@ inline double leafBoxPad(const Box& cell) {
   const Vec3 e = cell.hi - cell.lo;
   return 1e-3 * std::max({e.x, e.y, e.z});
 }
+/// The quantization scale of a leaf's interval [lo, hi] on one axis, 255 / (hi - lo): one
+/// expression for the cells' boxes (build) and the query points (FindCell), whose bytes are
+/// compared, so they must round alike. (opencl/query_cells.cl repeats it on the device.)
+inline double leafBoxScale(double lo, double hi) { return 255.0 / (hi - lo); }
 /// One axis of quantizeLeafBox: [lo, hi] padded by `pad`, relative to `leafLo`, times `scale`
 /// (255 / leaf width), rounded outwards and clamped to [0, 255].
 inline void quantizeLeafAxis(double lo, double hi, double pad, double leafLo, double scale, uint8_t q[2]) {
@@ -511,7 +515,8 @@ inline void quantizeLeafAxis(double lo, double hi, double pad, double leafLo, do
 inline void quantizeLeafBox(const Box& cell, const Box& leaf, uint8_t q[6]) {
   const double pad = detail::leafBoxPad(cell);
   for (int a = 0; a < 3; ++a)
-    detail::quantizeLeafAxis(cell.lo[a], cell.hi[a], pad, leaf.lo[a], 255.0 / (leaf.hi[a] - leaf.lo[a]), q + 2 * a);
+    detail::quantizeLeafAxis(cell.lo[a], cell.hi[a], pad, leaf.lo[a], detail::leafBoxScale(leaf.lo[a], leaf.hi[a]),
+                             q + 2 * a);
 }
 
 /// quantizeLeafBox as the builder's per-reference function (MatrixTreeBuilder::build<6>): the
@@ -533,7 +538,7 @@ struct LeafBoxQuantizer {
 
   /// The leaf interval [lo, hi]'s key for axis(): its scale, 255 / (hi - lo), as operator()
   /// computes it. The builder computes it once per interval and build.
-  static double axisKey(double lo, double hi) { return 255.0 / (hi - lo); }
+  static double axisKey(double lo, double hi) { return detail::leafBoxScale(lo, hi); }
   /// One axis's two bytes (q[0], q[1]) for the leaf interval starting at lo on axis a, with
   /// scale = axisKey(lo, hi): the builder's counting scatter calls this once per cell and
   /// candidate leaf row/column/slab and copies the three axes' bytes to each reference (see
@@ -553,7 +558,7 @@ struct LeafBoxQuantizer {
         const double w = hi - lo;
         if (w != width[a]) {
           width[a] = w;
-          scale[a] = 255.0 / w;
+          scale[a] = detail::leafBoxScale(lo, hi);
         }
         uint8_t b[2];
         detail::quantizeLeafAxis(c.box.lo[a], c.box.hi[a], pad, lo, scale[a], b);
