@@ -88,6 +88,17 @@ def write_json(path: str, rows) -> None:
         json.dump(rows, f, indent=1)
 
 
+def print_rows(rows: list, json_path: str | None) -> None:
+    """Print rows as a table with every key, in the order the keys first appear, and write them
+    as JSON if a path is given."""
+    keys = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    print(table(rows, keys))
+    if json_path:
+        write_json(json_path, rows)
+
+
 def write_outputs(json_path: str, payload, md_path: str | None, md_rows: list, md_cols: list) -> None:
     """Write the JSON results and, if asked, the markdown table; say where."""
     write_json(json_path, payload)

@@ -107,7 +107,7 @@ def main() -> int:
     a = parse()
     if a.rounds < 1 or a.repeats < 1:
         raise SystemExit("--rounds and --repeats must be at least 1")
-    from _common import table, write_json
+    from _common import print_rows
     from matrixtree import scenes
     bd = a.build_dir or os.environ.get("MATRIXTREE_BUILD_DIR") or ""
     paths = a.grid or sorted(p for p in glob.glob(os.path.join(scenes.data_dir(), "cfd", "*.*"))
@@ -132,10 +132,7 @@ def main() -> int:
                 row[k.replace("_ms", "_ratio")] = round(med[name][k] / med["vtkStaticCellLocator"][k], 3)
             rows.append(row)
         print(f"{os.path.basename(path)}: done", file=sys.stderr)
-    keys = list(rows[0].keys()) if rows else []
-    print(table(rows, keys))
-    if a.json:
-        write_json(a.json, rows)
+    print_rows(rows, a.json)
     return 0
 
 

@@ -101,7 +101,7 @@ def main() -> int:
     bd = a.build_dir or os.environ.get("MATRIXTREE_BUILD_DIR")
     if bd:  # before anything imports matrixtree_vtk
         sys.path.insert(0, os.path.join(os.path.abspath(bd), "python"))
-    from _common import check_build_dir, table, write_json
+    from _common import check_build_dir, print_rows
     check_build_dir(bd)
     import matrixtree
     from matrixtree import scenes
@@ -169,12 +169,7 @@ def main() -> int:
                 row["ratio_vs_static"] = row["build_ms"] / static_ms
                 row.update({k: stat(v) for k, v in phases.items()})
                 rows.append(row)
-    keys = []
-    for r in rows:
-        keys += [k for k in r if k not in keys]
-    print(table(rows, keys))
-    if a.json:
-        write_json(a.json, rows)
+    print_rows(rows, a.json)
     return 0
 
 
