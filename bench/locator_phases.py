@@ -10,7 +10,7 @@ With no --grid it runs every CFD grid in ../shared/data/cfd (--meshes: every sur
 ../shared/data/meshes instead, --all: both). A --grid that is a surface (.ply, .obj, .stl, .vtp)
 is read with matrixtree.read_mesh, as bench/locators.py does (a triangle vtkPolyData), anything
 else with matrixtree.read_grid. --locator (repeatable) keeps only the named configurations
-(matrix-octree, matrix-kdtree, matrix-octree-bbox). Every locator is built N times
+(matrix-octree, matrix-kdtree, matrix-octree-exact). Every locator is built N times
 (default 3, FreeSearchStructure in between) with --threads build threads (default 0: the
 locator's own rule, one per 1024 cells); every phase of GetBuildPhases() and the total are
 the median over the N builds, as is vtkStaticCellLocator's build (--stat min: the fastest of
@@ -42,7 +42,7 @@ def parse() -> argparse.Namespace:
     p.add_argument("--meshes", action="store_true", help="the surface meshes instead of the CFD grids")
     p.add_argument("--all", action="store_true", help="the CFD grids and the surface meshes")
     p.add_argument("--locator", action="append",
-                   choices=("matrix-octree", "matrix-kdtree", "matrix-octree-bbox"))
+                   choices=("matrix-octree", "matrix-kdtree", "matrix-octree-exact"))
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--build-dir", default=None)
     p.add_argument("--sort", choices=("radix", "counting", "both", "default"), default="default",
@@ -116,7 +116,7 @@ def main() -> int:
                              if not p.endswith(".txt"))
     sorts = {"default": [None], "radix": ["radix"], "counting": ["counting"],
              "both": ["radix", "counting"]}[a.sort]
-    configs = [("matrix-octree", 0, True), ("matrix-kdtree", 1, True), ("matrix-octree-bbox", 0, False)]
+    configs = [("matrix-octree", 0, False), ("matrix-kdtree", 1, False), ("matrix-octree-exact", 0, True)]
     if a.locator:
         configs = [c for c in configs if c[0] in a.locator]
     stat = statistics.median if a.stat == "median" else min

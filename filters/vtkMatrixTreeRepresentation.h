@@ -67,7 +67,7 @@ public:
   ///@}
 
   ///@{
-  /** Exact (default) or bounding-box cell/leaf overlap of the internal locator. */
+  /** Bounding-box (default, as vtkMatrixTreeLocator's) or exact cell/leaf overlap of the internal locator. */
   vtkSetMacro(ExactOverlap, bool);
   vtkGetMacro(ExactOverlap, bool);
   vtkBooleanMacro(ExactOverlap, bool);
@@ -95,7 +95,7 @@ protected:
   int TreeType = 0;
   int Height = 0;
   int BlockSize = 8;
-  bool ExactOverlap = true;
+  bool ExactOverlap = false;
   vtkMatrixTreeLocator* Locator = nullptr;
   vtkMatrixTreeLocator* InternalLocator = nullptr;
 

@@ -150,13 +150,13 @@ int main(int argc, char* argv[])
   };
   if (backend != "opencl")
   {
-    addMatrix("matrix-octree", 0, true);
-    addMatrix("matrix-kdtree", 1, true);
-    addMatrix("matrix-octree-bbox", 0, false);
+    addMatrix("matrix-octree", 0, false);
+    addMatrix("matrix-kdtree", 1, false);
+    addMatrix("matrix-octree-exact", 0, true);
   }
   if (backend != "cpu")
   {
-    addMatrix("matrix-octree-opencl", 0, true, true);
+    addMatrix("matrix-octree-opencl", 0, false, true);
   }
   locs.push_back({ "vtkStaticCellLocator", vtkSmartPointer<vtkStaticCellLocator>::New() });
   locs.push_back({ "vtkCellLocator", vtkSmartPointer<vtkCellLocator>::New() });

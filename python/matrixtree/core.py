@@ -538,7 +538,7 @@ def save_heatmap(counts: np.ndarray, path: str | os.PathLike, vmax: float, cmap:
     return save_rgb(rgb, path)
 
 
-def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_overlap: bool = True):
+def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_overlap: bool = False):
     """The matrix tree over a mesh or grid as boxes, for plotting (one voxel per existing node).
 
     Parameters
@@ -551,8 +551,9 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     levels : None, int or (int, int), default: None
         Which levels to output: ``None`` = every level from the root to the leaves, an int = that
         level only, ``(lo, hi)`` = levels lo..hi (``hi = -1``: the leaf level).
-    exact_overlap : bool, default: True
-        Exact cell/box overlap (fewer, tighter nodes) or bounding boxes.
+    exact_overlap : bool, default: False
+        Bounding-box cell/box overlap (the cell locator's default) or exact (a separating-axis
+        test: fewer references on tetrahedra, a slower build).
 
     Returns
     -------

@@ -40,10 +40,11 @@ def contains(ds, cell_id, p):
 
 
 @pytest.mark.parametrize("grid", GRIDS)
-@pytest.mark.parametrize("tree", [0, 1])
-def test_find_cell_agrees_with_vtk_cell_locator(grid, tree):
+@pytest.mark.parametrize("tree,exact", [(0, False), (1, False), (0, True)])
+def test_find_cell_agrees_with_vtk_cell_locator(grid, tree, exact):
+    """Both overlap modes: bounding boxes (the default) and the separating-axis test."""
     ds = matrixtree.read_grid(os.path.join(CFD, grid))
-    ours = build(vtkMatrixTreeLocator, ds, TreeType=tree)
+    ours = build(vtkMatrixTreeLocator, ds, TreeType=tree, ExactOverlap=exact)
     ref = build(vtkCellLocator, ds)
     gc = vtkGenericCell()
     pc, w = [0.0] * 3, [0.0] * 8
@@ -117,13 +118,15 @@ def test_probe_filter_with_prototype_matches_vtk():
 
 
 @pytest.mark.parametrize("grid", GRIDS)
-def test_rays_in_grids_match_vtk_cell_locator(grid):
+@pytest.mark.parametrize("exact", [False, True])
+def test_rays_in_grids_match_vtk_cell_locator(grid, exact):
     """First hits of segments in the volume grids, at tolerance 0 and above: the same t as
     vtkCellLocator (the cell may differ only where two cells are hit at the same t, as on a shared
     face). Segments start inside the grid (the first hit is the exit of the start cell), outside
-    it, and at cell vertices; this is what guards the pre-VTK rejection test (segment_filter.h)."""
+    it, and at cell vertices; this is what guards the pre-VTK rejection test (segment_filter.h).
+    Both overlap modes (bounding boxes, the default, and exact)."""
     ds = matrixtree.read_grid(os.path.join(CFD, grid))
-    ours = build(vtkMatrixTreeLocator, ds)
+    ours = build(vtkMatrixTreeLocator, ds, ExactOverlap=exact)
     ref = build(vtkCellLocator, ds)
     b = np.array(ds.GetBounds()).reshape(3, 2)
     diag = float(np.linalg.norm(b[:, 1] - b[:, 0]))
@@ -153,10 +156,10 @@ def test_rays_in_grids_match_vtk_cell_locator(grid):
     assert mismatches == 0
 
 
-@pytest.mark.parametrize("tree", [0, 1])
-def test_rays_match_vtk_cell_locator(tree):
+@pytest.mark.parametrize("tree,exact", [(0, False), (1, False), (0, True)])
+def test_rays_match_vtk_cell_locator(tree, exact):
     mesh = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
-    ours = build(vtkMatrixTreeLocator, mesh, TreeType=tree)
+    ours = build(vtkMatrixTreeLocator, mesh, TreeType=tree, ExactOverlap=exact)
     ref = build(vtkCellLocator, mesh)
     b = np.array(mesh.GetBounds()).reshape(3, 2)
     rng = np.random.default_rng(2)
