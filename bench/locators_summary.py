@@ -1,0 +1,77 @@
+#!/usr/bin/env python3
+"""The issue-4 targets table from several bench/locators.py runs: per grid, one locator's ratios
+to vtkStaticCellLocator (each computed within its run), as the median over the runs and their
+range, in bold where the median meets the target.
+
+    .venv/bin/python bench/locators_summary.py RUN.json [RUN2.json ...] [--locator NAME]
+                                               [--previous OLD.json ...]
+
+Columns: FindCell (one-thread CPU time, target >= 5), rays (one-thread CPU time, >= 10), build
+(build_ms: median of 3 builds, each locator alone in a fresh process since bench/locators.py
+measures it so; <= 1), first build (build_first_ms, <= 1), rebuild after the points moved
+(<= 1 is not a target, shown for deforming meshes), memory (<= 1). --previous: runs whose
+median build ratio goes in brackets after the shared-process one (build_shared_ratio_vs_static,
+or build_ratio_vs_static for runs that predate the isolated builds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+
+COLUMNS = (  # key, target test, header
+    ("findcell_cpu_speedup_vs_static", lambda m: m >= 5, "FindCell ×"),
+    ("rays_cpu_speedup_vs_static", lambda m: m >= 10, "rays ×"),
+    ("build_ratio_vs_static", lambda m: m <= 1, "build ×"),
+    ("build_first_ratio_vs_static", lambda m: m <= 1, "first build ×"),
+    ("rebuild_ratio_vs_static", lambda m: m <= 1, "rebuild ×"),
+)
+
+
+def load(paths: list, locator: str) -> dict:
+    rows = {}
+    for path in paths:
+        with open(path) as f:
+            for r in json.load(f):
+                if r["locator"] == locator and r.get("backend", "cpu") == "cpu":
+                    rows.setdefault(r["grid"], []).append(r)
+    return rows
+
+
+def cell(values: list, ok) -> str:
+    if not values:
+        return "–"
+    m = statistics.median(values)
+    s = f"{m:.2f}"
+    return f"{'**' + s + '**' if ok(m) else s} ({min(values):.2f}–{max(values):.2f})"
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("runs", nargs="+")
+    p.add_argument("--locator", default="matrix-octree")
+    p.add_argument("--previous", nargs="*", default=[])
+    a = p.parse_args()
+    rows = load(a.runs, a.locator)
+    old = load(a.previous, a.locator)
+    head = ["grid", "cells", "height"] + [c[2] for c in COLUMNS] + ["memory ×", "build × (shared process)"]
+    print("| " + " | ".join(head) + " |")
+    print("|" + "---|" * len(head))
+    for grid, rs in rows.items():
+        cols = [grid, str(rs[0]["cells"]), str(rs[0].get("height", ""))]
+        cols += [cell([r[k] for r in rs if k in r], ok) for k, ok, _ in COLUMNS]
+        mem = statistics.median(r["bytes_ratio_vs_static"] for r in rs)
+        cols.append(f"**{mem:.2f}**" if mem <= 1 else f"{mem:.2f}")
+        shared = [r["build_shared_ratio_vs_static"] for r in rs if "build_shared_ratio_vs_static" in r]
+        s = f"{statistics.median(shared):.2f}" if shared else "–"
+        if grid in old:
+            prev = [r.get("build_shared_ratio_vs_static", r["build_ratio_vs_static"]) for r in old[grid]]
+            s += f" [{statistics.median(prev):.2f}]"
+        cols.append(s)
+        print("| " + " | ".join(cols) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
