@@ -2370,6 +2370,16 @@ vtkTypeUInt64 vtkMatrixTreeLocator::GetQueryStatistic(int i)
 #endif
 }
 
+vtkTypeInt64 vtkMatrixTreeLocator::GetCachedMemorySize()
+{
+  return static_cast<vtkTypeInt64>(mtree::cachedMemoryBytes());
+}
+
+vtkTypeInt64 vtkMatrixTreeLocator::ReleaseCachedMemory()
+{
+  return static_cast<vtkTypeInt64>(mtree::releaseCachedMemory());
+}
+
 void vtkMatrixTreeLocator::ResetQueryStatistics()
 {
 #if defined(MATRIXTREE_QUERY_STATS) && MATRIXTREE_QUERY_STATS

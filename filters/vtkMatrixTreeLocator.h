@@ -381,7 +381,8 @@ public:
    * array; 32-bit connectivity, 32-bit offsets unless every cell has the same number of points,
    * and types unless all cells have one type, when CellStorage copies them; float bounds with
    * CacheCellBounds on) and the quantized leaf-local cell boxes (6 bytes per reference). The data set's arrays read in place are not
-   * counted; nor are the build's work arrays the tree keeps for the next build.
+   * counted; nor are the build's work arrays the tree keeps for the next build, nor the freed
+   * large arrays the process keeps for reuse (GetCachedMemorySize).
    */
   vtkIdType GetMemorySize();
   double GetLastBuildTime();
@@ -415,6 +416,20 @@ public:
   static const char* GetQueryStatisticName(int i);
   static vtkTypeUInt64 GetQueryStatistic(int i);
   static void ResetQueryStatistics();
+  ///@}
+
+  ///@{
+  /**
+   * The builds' large arrays (2 MiB and up) are memory mappings; freed ones are kept for reuse by
+   * later builds in the process (at most 16 of them and 512 MiB), as the C library keeps freed
+   * heap blocks, so that a rebuild (a deforming mesh every frame, a build after
+   * FreeSearchStructure) writes into pages the process already has: no page faults, no zeroing
+   * by the kernel. GetCachedMemorySize: the bytes kept, shared by every locator and tree of the
+   * process. ReleaseCachedMemory: unmaps them all and returns their bytes (memory back to the
+   * system after the last build). MATRIXTREE_MAP_CACHE=0 in the environment keeps none.
+   */
+  static vtkTypeInt64 GetCachedMemorySize();
+  static vtkTypeInt64 ReleaseCachedMemory();
   ///@}
 
 protected:

@@ -164,6 +164,35 @@ TEST(BuildSort, LongLeavesAtALowHeight) {
   expectSortsAgree(cells, TreeKind::RegularKd, OverlapMode::Exact, 4, "pipe_flow_tets");
 }
 
+TEST(BuildSort, ReusedMappingsGiveTheSameTree) {
+  // A build's large arrays come from mappings freed by earlier builds (memory.h's cache), holding
+  // whatever those wrote; here filled with 0xA5 bytes. A build that read an element it did not
+  // write would then differ from the 1-thread radix build on fresh memory.
+  if (!mtree::detail::mappingCacheWanted()) GTEST_SKIP() << "MATRIXTREE_MAP_CACHE=0";
+  const CellSet cells = loadGrid("cfd/pipe_flow_tets.vtu");
+  for (OverlapMode overlap : {OverlapMode::BoundingBox, OverlapMode::Exact}) {
+    mtree::releaseCachedMemory();
+    MatrixTree ref;
+    mtree::LargeVector<uint8_t> refBoxes;
+    MatrixTreeBuilder<CellSet>::build<6>(cells, opts(TreeKind::Octree, overlap, BuildSort::Radix, 1, 0), ref, nullptr,
+                                         &refBoxes, mtree::LeafBoxQuantizer());
+    mtree::detail::setMappingCachePoison(true);
+    for (BuildSort sort : {BuildSort::Counting, BuildSort::Radix})
+      for (int threads : {1, 2, 3})
+        for (int rep = 0; rep < 2; ++rep) {
+          const BuildOptions o = opts(TreeKind::Octree, overlap, sort, threads, 0);
+          MatrixTree t;
+          mtree::LargeVector<uint8_t> boxes;
+          MatrixTreeBuilder<CellSet>::build<6>(cells, o, t, nullptr, &boxes, mtree::LeafBoxQuantizer());
+          mtest::expectSameTree(ref, t, "pipe_flow_tets on reused mappings: " + name(o));
+          EXPECT_TRUE(boxes == refBoxes) << name(o);
+        }
+    EXPECT_GT(mtree::cachedMemoryBytes(), 0u) << "the builds' arrays were kept";
+    mtree::detail::setMappingCachePoison(false);
+  }
+  mtree::releaseCachedMemory();
+}
+
 /// build<6> with LeafBoxQuantizer against the old gather, for both sorts and 1 to 3 threads,
 /// and the tree the same as a plain build's.
 void expectLeafBoxesAsGathered(const CellSet& cells, TreeKind kind, OverlapMode overlap, int height,

@@ -178,11 +178,68 @@ TEST(LargeVector, MappingLengthRule) {
   using mtree::detail::mappedLength;
   const size_t M = size_t{1} << 20;
   EXPECT_EQ(mappedLength(2 * M), 2 * M);
-  EXPECT_EQ(mappedLength(2 * M + 1), 2 * M + 4096);  // a whole huge page more would be 50%
-  EXPECT_EQ(mappedLength(4 * M - 100), 4 * M);        // rounding up adds 100 bytes
-  EXPECT_EQ(mappedLength(16 * M + 1), 18 * M);        // adds just under an eighth
-  EXPECT_EQ(mappedLength(10 * M + 1), 10 * M + 4096); // would add more than an eighth
+  // A whole huge page more would be 50%: the size class, 1/32 of 2 MiB.
+  EXPECT_EQ(mappedLength(2 * M + 1), 2 * M + 64 * 1024);
+  EXPECT_EQ(mappedLength(4 * M - 100), 4 * M);              // rounding up adds 100 bytes
+  EXPECT_EQ(mappedLength(16 * M + 1), 18 * M);              // adds just under an eighth
+  EXPECT_EQ(mappedLength(10 * M + 1), 10 * M + 256 * 1024); // would add more than an eighth
+  // Blocks of about the same size share a length (a deforming mesh's arrays, build to build).
+  EXPECT_EQ(mappedLength(3 * M + 1000), mappedLength(3 * M + 60000));
+  for (size_t b : {2 * M + 1, 3 * M + 7, 5 * M + 12345, 10 * M + 1, 33 * M + 5}) {
+    EXPECT_GE(mappedLength(b), b);
+    EXPECT_LE(mappedLength(b) - b, b / 8) << b;
+    EXPECT_EQ(mappedLength(b) % 4096, 0u) << b;
+  }
 }
+
+#if defined(__linux__)
+TEST(LargeVector, FreedMappingsAreReusedForTheSameLength) {
+  if (!mtree::detail::mappingCacheWanted()) GTEST_SKIP() << "MATRIXTREE_MAP_CACHE=0";
+  mtree::releaseCachedMemory();
+  EXPECT_EQ(mtree::cachedMemoryBytes(), 0u);
+  const size_t n = (size_t{3} << 20) + 1000;
+  const size_t len = mtree::detail::mappedLength(n);
+  const void* first;
+  {
+    mtree::LargeVector<uint8_t> v(n, 1);
+    first = v.data();
+  }
+  EXPECT_EQ(mtree::cachedMemoryBytes(), len);
+  {
+    mtree::LargeVector<uint8_t> other(size_t{7} << 20);  // another length: a new mapping
+    EXPECT_NE(static_cast<const void*>(other.data()), first);
+    EXPECT_EQ(mtree::cachedMemoryBytes(), len);
+    mtree::LargeVector<uint8_t> again(n + 20000);  // the same size class: the kept mapping
+    EXPECT_EQ(static_cast<const void*>(again.data()), first);
+    EXPECT_EQ(mtree::cachedMemoryBytes(), 0u);
+    again.assign(again.size(), 5);  // usable memory
+    EXPECT_EQ(std::count(again.begin(), again.end(), uint8_t{5}), static_cast<std::ptrdiff_t>(again.size()));
+  }
+  EXPECT_EQ(mtree::cachedMemoryBytes(), len + mtree::detail::mappedLength(size_t{7} << 20));
+  EXPECT_EQ(mtree::releaseCachedMemory(), len + mtree::detail::mappedLength(size_t{7} << 20));
+  EXPECT_EQ(mtree::cachedMemoryBytes(), 0u);
+}
+
+TEST(LargeVector, TheCacheKeepsAtMostSixteenMappings) {
+  if (!mtree::detail::mappingCacheWanted()) GTEST_SKIP() << "MATRIXTREE_MAP_CACHE=0";
+  mtree::releaseCachedMemory();
+  {
+    std::vector<mtree::LargeVector<uint8_t>> many;
+    for (int i = 0; i < 20; ++i) many.emplace_back(size_t{2} << 20);
+  }
+  EXPECT_EQ(mtree::cachedMemoryBytes(), mtree::detail::MappingCache::kMaxEntries * (size_t{2} << 20));
+  {
+    // Freed from threads at once (the build's per-thread arrays): the count stays consistent.
+    std::vector<mtree::LargeVector<uint8_t>> many(8);
+#pragma omp parallel for num_threads(4)
+    for (int i = 0; i < 8; ++i) many[size_t(i)].resize(size_t{2} << 20);
+#pragma omp parallel for num_threads(4)
+    for (int i = 0; i < 8; ++i) mtree::LargeVector<uint8_t>().swap(many[size_t(i)]);
+  }
+  EXPECT_EQ(mtree::cachedMemoryBytes(), mtree::detail::MappingCache::kMaxEntries * (size_t{2} << 20));
+  mtree::releaseCachedMemory();
+}
+#endif
 
 TEST(LargeVector, BehavesAsAVectorAcrossTheMappingThreshold) {
   // Sizes below, at and above kLargeBytes (2 MiB), grown by push_back (reallocations that move

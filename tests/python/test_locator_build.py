@@ -303,3 +303,34 @@ def test_automatic_height_rule_follows_the_cell_dimension():
     app.Update()
     mixed = locator(app.GetOutput())
     assert (mixed.GetLeafScaleUsed(), mixed.GetMaxCandidatesUsed()) == (1.0, 16.0)
+
+
+def test_freed_build_arrays_are_kept_for_reuse_and_released_on_request():
+    """The builds' large arrays go back to a per-process cache of mappings, not to the system:
+    a rebuild after FreeSearchStructure reuses them (same tree, same answers), and
+    ReleaseCachedMemory hands them all back."""
+    if os.environ.get("MATRIXTREE_MAP_CACHE") == "0":
+        pytest.skip("MATRIXTREE_MAP_CACHE=0")
+    grid = matrixtree.read_grid(os.path.join(scenes.data_dir(), "cfd", "pipe_flow_tets.vtu"))
+    vtkMatrixTreeLocator.ReleaseCachedMemory()
+    assert vtkMatrixTreeLocator.GetCachedMemorySize() == 0
+    loc = vtkMatrixTreeLocator()
+    loc.SetDataSet(grid)
+    loc.BuildLocator()
+    refs, leaves, size = loc.GetNumberOfReferences(), loc.GetNumberOfLeaves(), loc.GetMemorySize()
+    pts = np.random.default_rng(5).random((2000, 3))
+    b = np.array(grid.GetBounds()).reshape(3, 2)
+    pts = b[:, 0] + pts * (b[:, 1] - b[:, 0])
+    gc, pc, w = vtkGenericCell(), [0.0] * 3, [0.0] * 8
+    before = [loc.FindCell(list(p), 0.0, gc, pc, w) for p in pts]
+    loc.FreeSearchStructure()
+    kept = vtkMatrixTreeLocator.GetCachedMemorySize()
+    assert kept >= 2 * 1024 * 1024, "the tree's arrays of 2 MiB and up were kept"
+    loc.BuildLocator()
+    assert vtkMatrixTreeLocator.GetCachedMemorySize() < kept, "the rebuild took mappings back"
+    assert (loc.GetNumberOfReferences(), loc.GetNumberOfLeaves(), loc.GetMemorySize()) == (refs, leaves, size)
+    assert [loc.FindCell(list(p), 0.0, gc, pc, w) for p in pts] == before
+    still = vtkMatrixTreeLocator.GetCachedMemorySize()
+    assert vtkMatrixTreeLocator.ReleaseCachedMemory() == still
+    assert vtkMatrixTreeLocator.GetCachedMemorySize() == 0
+    assert loc.FindCell(list(pts[0]), 0.0, gc, pc, w) == before[0], "the live tree is untouched"

@@ -12,16 +12,30 @@
 //
 // How: blocks of at least kLargeBytes are mmap'ed at a 2 MiB boundary and advised MADV_HUGEPAGE,
 // so on Linux with transparent huge pages set to "madvise" or "always" each 2 MiB is one fault;
-// the length is rounded up to whole huge pages when that adds at most an eighth (else the tail
-// stays on small pages). Smaller blocks and other systems use operator new.
+// the length is rounded up to whole huge pages when that adds at most an eighth, else to a size
+// class (1/32 of the block's power of two, at least a 4 KiB page) so that blocks of about the
+// same size get mappings of the same length. Smaller blocks and other systems use operator new.
 // MATRIXTREE_HUGE_PAGES=0 in the environment keeps the mappings but drops the advice.
+//
+// Freed mappings are kept for reuse (MappingCache: at most 16 of them and 512 MiB, the oldest
+// unmapped first), as glibc keeps freed heap blocks: a build that follows another one (a
+// deforming mesh rebuilt every frame, or a build after FreeSearchStructure) then writes into
+// pages the process already has, with no fault and no zeroing by the kernel (lucy: a steady
+// build 10-11 ms without, 8.1-8.4 ms with; docs/bench_locators.md). A mapping is reused only
+// for a block of the same mapped length. releaseCachedMemory() unmaps them all;
+// MATRIXTREE_MAP_CACHE=0 in the environment turns the cache off.
+//
 // Elements are default-initialised: resize() leaves trivial types (the ids, counts, boxes)
-// unwritten, so code must write every element it reads (assign() and resize(n, v) still fill).
+// unwritten, so code must write every element it reads (assign() and resize(n, v) still fill):
+// a reused mapping holds what its last user wrote (tests poison them to check, see
+// setMappingCachePoison).
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
+#include <mutex>
 #include <new>
 #include <utility>
 #include <vector>
@@ -38,11 +52,17 @@ constexpr size_t kSmallPage = size_t{4} << 10;
 /// Blocks from this size up are mapped (one huge page: smaller ones gain nothing from it).
 constexpr size_t kLargeBytes = kHugePage;
 
+inline size_t roundUpTo(size_t bytes, size_t granule) { return (bytes + granule - 1) / granule * granule; }
+
 /// The mapping length for a block of `bytes` (>= kLargeBytes): whole huge pages when rounding up
-/// adds at most an eighth, else whole small pages.
+/// adds at most an eighth, else a size class: `bytes` rounded up to 1/32 of its largest power of
+/// two not above it (at least a small page), at most 1/32 more.
 inline size_t mappedLength(size_t bytes) {
-  const size_t huge = (bytes + kHugePage - 1) / kHugePage * kHugePage;
-  return huge - bytes <= bytes / 8 ? huge : (bytes + kSmallPage - 1) / kSmallPage * kSmallPage;
+  const size_t huge = roundUpTo(bytes, kHugePage);
+  if (huge - bytes <= bytes / 8) return huge;
+  size_t pow2 = 1;
+  while (pow2 <= bytes / 2) pow2 *= 2;
+  return roundUpTo(bytes, pow2 / 32 > kSmallPage ? pow2 / 32 : kSmallPage);
 }
 
 /// Whether to ask for huge pages: yes unless the environment variable MATRIXTREE_HUGE_PAGES is
@@ -55,11 +75,73 @@ inline bool hugePagesWanted() {
   return wanted;
 }
 
-/// A 2 MiB-aligned anonymous mapping of mappedLength(bytes) bytes advised for huge pages, or
-/// nullptr when mmap fails.
+/// Freed mappings kept for reuse (see the file comment): oldest first. One per process (a copy
+/// per shared object at worst: then only fewer reuses). Never destroyed, so that vectors freed
+/// by static destructors still find it.
+struct MappingCache {
+  static constexpr size_t kMaxEntries = 16;
+  static constexpr size_t kMaxBytes = size_t{512} << 20;
+  std::mutex mutex;
+  std::vector<std::pair<void*, size_t>> entries;
+  size_t bytes = 0;
+  bool poison = false;  // tests: fill a reused mapping with 0xA5 bytes
+  MappingCache() { entries.reserve(kMaxEntries + 1); }
+};
+inline MappingCache& mappingCache() {
+  static MappingCache* cache = new MappingCache;
+  return *cache;
+}
+/// Whether freed mappings are kept: yes unless MATRIXTREE_MAP_CACHE is "0" (read once).
+inline bool mappingCacheWanted() {
+  static const bool wanted = [] {
+    const char* v = std::getenv("MATRIXTREE_MAP_CACHE");
+    return !(v && v[0] == '0' && v[1] == '\0');
+  }();
+  return wanted;
+}
+
+#if defined(__linux__)
+/// A kept mapping of exactly `len` bytes (the newest), or nullptr.
+inline void* takeCachedMapping(size_t len) {
+  if (!mappingCacheWanted()) return nullptr;
+  MappingCache& c = mappingCache();
+  std::lock_guard<std::mutex> lock(c.mutex);
+  for (size_t i = c.entries.size(); i-- > 0;) {
+    if (c.entries[i].second != len) continue;
+    void* p = c.entries[i].first;
+    c.entries.erase(c.entries.begin() + static_cast<std::ptrdiff_t>(i));
+    c.bytes -= len;
+    if (c.poison) std::memset(p, 0xA5, len);
+    return p;
+  }
+  return nullptr;
+}
+
+/// Keeps the mapping [p, p + len) for reuse, unmapping the oldest ones past the limits (or
+/// this one, with the cache off).
+inline void releaseMapping(void* p, size_t len) noexcept {
+  if (!mappingCacheWanted()) {
+    munmap(p, len);
+    return;
+  }
+  MappingCache& c = mappingCache();
+  std::lock_guard<std::mutex> lock(c.mutex);
+  c.entries.emplace_back(p, len);  // capacity reserved: no allocation
+  c.bytes += len;
+  while (c.entries.size() > MappingCache::kMaxEntries || c.bytes > MappingCache::kMaxBytes) {
+    munmap(c.entries.front().first, c.entries.front().second);
+    c.bytes -= c.entries.front().second;
+    c.entries.erase(c.entries.begin());
+  }
+}
+#endif
+
+/// A 2 MiB-aligned anonymous mapping of mappedLength(bytes) bytes advised for huge pages (a
+/// kept one when there is one of that length), or nullptr when mmap fails.
 inline void* mapLarge(size_t bytes) {
 #if defined(__linux__)
   const size_t len = mappedLength(bytes);
+  if (void* kept = takeCachedMapping(len)) return kept;
   void* raw = mmap(nullptr, len + kHugePage, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (raw == MAP_FAILED) return nullptr;
   const uintptr_t r = reinterpret_cast<uintptr_t>(raw);
@@ -112,7 +194,7 @@ struct LargeAllocator {
     const size_t bytes = n * sizeof(T);
 #if defined(__linux__)
     if (detail::isLarge(bytes)) {
-      munmap(static_cast<void*>(p), detail::mappedLength(bytes));
+      detail::releaseMapping(static_cast<void*>(p), detail::mappedLength(bytes));
       return;
     }
 #endif
@@ -139,5 +221,38 @@ struct LargeAllocator {
 
 template <class T>
 using LargeVector = std::vector<T, LargeAllocator<T>>;
+
+/// Unmaps every mapping kept for reuse (LargeVector's freed blocks, see the file comment) and
+/// returns their bytes: memory back to the system after the last build.
+inline size_t releaseCachedMemory() {
+#if defined(__linux__)
+  detail::MappingCache& c = detail::mappingCache();
+  std::lock_guard<std::mutex> lock(c.mutex);
+  const size_t released = c.bytes;
+  for (const auto& e : c.entries) munmap(e.first, e.second);
+  c.entries.clear();
+  c.bytes = 0;
+  return released;
+#else
+  return 0;
+#endif
+}
+
+/// Bytes of the mappings kept for reuse.
+inline size_t cachedMemoryBytes() {
+  detail::MappingCache& c = detail::mappingCache();
+  std::lock_guard<std::mutex> lock(c.mutex);
+  return c.bytes;
+}
+
+namespace detail {
+/// Tests: fill every reused mapping with 0xA5 bytes (code that reads what it did not write then
+/// reads garbage instead of the zeros of a fresh mapping).
+inline void setMappingCachePoison(bool on) {
+  MappingCache& c = mappingCache();
+  std::lock_guard<std::mutex> lock(c.mutex);
+  c.poison = on;
+}
+}  // namespace detail
 
 }  // namespace mtree
