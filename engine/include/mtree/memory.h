@@ -20,8 +20,9 @@
 // Freed mappings are kept for reuse (MappingCache: at most 16 of them and 512 MiB, the oldest
 // unmapped first), as glibc keeps freed heap blocks: a build that follows another one (a
 // deforming mesh rebuilt every frame, or a build after FreeSearchStructure) then writes into
-// pages the process already has, with no fault and no zeroing by the kernel (lucy: a steady
-// build 10-11 ms without, 8.1-8.4 ms with; docs/bench_locators.md). A mapping is reused only
+// pages the process already has, with no fault and no zeroing by the kernel (steady builds, the
+// median of 4 processes: lucy 11.9 ms without, 9.5 ms with; docs/bench_locators.md, "Freed
+// mappings kept for reuse"). A mapping is reused only
 // for a block of the same mapped length. releaseCachedMemory() unmaps them all;
 // MATRIXTREE_MAP_CACHE=0 in the environment turns the cache off.
 //
