@@ -19,9 +19,9 @@ from matrixtree_vtk import vtkMatrixTreeVersion
 from matrixtree import scenes
 from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb, time_frames, tree_mesh
 from matrixtree.grids import read_grid
-from matrixtree.locator import CellLocator
+from matrixtree.locator import CellLocator, cached_memory, release_cached_memory
 from matrixtree.volume import default_transfer_functions, frame_camera, read_volume, render_volume
 
 __version__ = vtkMatrixTreeVersion.GetVersion()
 
-__all__ = ["CellLocator", "MatrixTree", "read_grid", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "time_frames", "tree_mesh", "__version__"]
+__all__ = ["CellLocator", "MatrixTree", "cached_memory", "release_cached_memory", "read_grid", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "time_frames", "tree_mesh", "__version__"]

@@ -16,10 +16,30 @@ from vtkmodules.vtkCommonDataModel import vtkDataSet
 
 from matrixtree_vtk import vtkMatrixTreeLocator
 
-__all__ = ["CellLocator"]
+__all__ = ["CellLocator", "cached_memory", "release_cached_memory"]
 
 _TREES = {"octree": 0, "kdtree": 1}
 _BACKENDS = ("cpu", "opencl")
+
+
+def cached_memory() -> int:
+    """Bytes of freed tree arrays the process keeps for the next build.
+
+    Every matrix tree (``CellLocator``, ``MatrixTree``) holds its large arrays (2 MiB and up) in
+    memory mappings; freed ones are kept, at most 16 and 512 MiB, so that a rebuild (a deforming
+    mesh every frame) writes into pages the process already has. ``MATRIXTREE_MAP_CACHE=0`` in
+    the environment keeps none.
+
+    >>> import matrixtree
+    >>> matrixtree.release_cached_memory() >= 0 and matrixtree.cached_memory() == 0
+    True
+    """
+    return int(vtkMatrixTreeLocator.GetCachedMemorySize())
+
+
+def release_cached_memory() -> int:
+    """Hands every kept mapping (see ``cached_memory``) back to the system; returns its bytes."""
+    return int(vtkMatrixTreeLocator.ReleaseCachedMemory())
 
 
 def _points3(a, name: str) -> np.ndarray:

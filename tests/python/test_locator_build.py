@@ -334,3 +334,23 @@ def test_freed_build_arrays_are_kept_for_reuse_and_released_on_request():
     assert vtkMatrixTreeLocator.ReleaseCachedMemory() == still
     assert vtkMatrixTreeLocator.GetCachedMemorySize() == 0
     assert loc.FindCell(list(pts[0]), 0.0, gc, pc, w) == before[0], "the live tree is untouched"
+
+
+def test_python_cached_memory_functions_report_and_release():
+    """matrixtree.cached_memory / release_cached_memory: the locator's static calls, for scripts
+    (a CellLocator rebuilt over a moving grid, then memory handed back)."""
+    if os.environ.get("MATRIXTREE_MAP_CACHE") == "0":
+        pytest.skip("MATRIXTREE_MAP_CACHE=0")
+    grid = matrixtree.read_grid(os.path.join(scenes.data_dir(), "cfd", "pipe_flow_tets.vtu"))
+    matrixtree.release_cached_memory()
+    loc = matrixtree.CellLocator(grid)
+    pts = np.asarray([grid.GetCell(c).GetPoints().GetPoint(0) for c in range(0, 1000, 10)])
+    first = loc.locate(pts)
+    del loc
+    kept = matrixtree.cached_memory()
+    assert kept > 0, "the deleted locator's large arrays were kept"
+    again = matrixtree.CellLocator(grid).locate(pts)
+    assert np.array_equal(first, again)
+    left = matrixtree.cached_memory()
+    assert matrixtree.release_cached_memory() == left
+    assert matrixtree.cached_memory() == 0
