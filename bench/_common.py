@@ -43,6 +43,16 @@ def load(path: str):
     return matrixtree.read_mesh(path)
 
 
+MESH_EXTENSIONS = (".ply", ".obj", ".stl", ".vtp")
+
+
+def read_any(path: str):
+    """A surface as bench/locators.py gives it to the locators (triangle polydata), else a grid."""
+    if os.path.splitext(path)[1].lower() in MESH_EXTENSIONS:
+        return matrixtree.read_mesh(path)
+    return matrixtree.read_grid(path)
+
+
 def median_time_ms(fn, repeats: int) -> tuple[float, list]:
     times = []
     for _ in range(repeats):

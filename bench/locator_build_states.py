@@ -42,13 +42,11 @@ def child(build_dir: str, path: str, names: str, builds: int) -> None:
     if build_dir:
         sys.path.insert(0, os.path.join(os.path.abspath(build_dir), "python"))
     sys.path.insert(0, HERE)
-    from _common import check_build_dir
-    import matrixtree
+    from _common import check_build_dir, read_any
     from vtkmodules.vtkCommonDataModel import vtkStaticCellLocator
 
     check_build_dir(build_dir)
-    ext = os.path.splitext(path)[1].lower()
-    ds = matrixtree.read_mesh(path) if ext in (".ply", ".obj", ".stl", ".vtp") else matrixtree.read_grid(path)
+    ds = read_any(path)
     for name in names.split(","):
         if name == "vtkStaticCellLocator":
             loc = vtkStaticCellLocator()

@@ -58,17 +58,6 @@ def parse() -> argparse.Namespace:
     return p.parse_args()
 
 
-MESH_EXTENSIONS = (".ply", ".obj", ".stl", ".vtp")
-
-
-def read_any(path: str):
-    """A surface as bench/locators.py gives it to the locators (triangle polydata), else a grid."""
-    import matrixtree
-    if os.path.splitext(path)[1].lower() in MESH_EXTENSIONS:
-        return matrixtree.read_mesh(path)
-    return matrixtree.read_grid(path)
-
-
 def static_bytes(ds, st) -> int:
     """vtkStaticCellLocator's memory, estimated from its layout (vtkStaticCellLocator.cxx) as the
     C++ driver does: 6 doubles of bounds per cell, one (cell, bin) fragment of two ids per bin a
@@ -101,7 +90,7 @@ def main() -> int:
     bd = a.build_dir or os.environ.get("MATRIXTREE_BUILD_DIR")
     if bd:  # before anything imports matrixtree_vtk
         sys.path.insert(0, os.path.join(os.path.abspath(bd), "python"))
-    from _common import check_build_dir, print_rows
+    from _common import check_build_dir, print_rows, read_any
     check_build_dir(bd)
     import matrixtree
     from matrixtree import scenes
