@@ -599,11 +599,11 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       detail::forEachBit(numCand == 64 ? mask : mask & ((uint64_t{1} << numCand) - 1), lo, w0, w1, f);
       return;
     }
-    // More than 64 candidates from here: the ones beyond the mask are tested again if the count
-    // pass tested them.
+    // More than 64 candidates from here (exact overlap): the ones beyond the mask are tested
+    // again if the count pass tested them.
     uint32_t cand = 0;
     const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
-    const bool test = exact && thin < 2;
+    const bool test = thin < 2;
     auto emit = [&](auto&& beyondMask) {
       for (int k = lo[2]; k <= hi[2]; ++k)
         for (int j = lo[1]; j <= hi[1]; ++j)
