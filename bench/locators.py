@@ -14,7 +14,7 @@ calls after the points moved, without FreeSearchStructure: a deforming mesh's co
 all three measured with each locator alone in a fresh process (--build-repeats such processes per
 locator, alternating the locators' order, median; default 1): built in the shared process after
 other locators, a locator inherits their heap and ran up to 2x faster (vtkStaticCellLocator on
-brick_hex: 2.4 ms alone, 1.05 ms fourth; docs/bench_locators.md, "Builds measured alone"). The
+brick_hex: 1.8-2.3 ms alone, 1.05 ms fourth, medians of five runs; docs/bench_locators.md, "Builds measured alone"). The
 shared process's values are kept as build_ms_shared, build_first_ms_shared, rebuild_ms_shared.
 bytes (ours:
 GetMemorySize, everything the locator holds; vtkStaticCellLocator: estimated from its layout,
