@@ -38,6 +38,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <sstream>
 #include <string>
@@ -66,6 +67,15 @@ struct vtkMatrixTreeLocatorInternals
   // leaf (xlo xhi ylo yhi zlo zhi). Point location scans these sequentially instead of
   // fetching every candidate's bounds from a random place: 6 bytes per reference.
   mtree::LargeVector<uint8_t> LeafBoxes;
+  // One mtree::ConvexShapeMemo byte per cell where the cells include hexahedra, wedges or
+  // pyramids (else empty): the ray queries' planarity and convexity checks of a cell, done once
+  // per build instead of once per segment. Written by concurrent queries (relaxed atomics).
+  struct FreeDeleter
+  {
+    void operator()(uint8_t* p) const { std::free(p); }
+  };
+  std::unique_ptr<uint8_t[], FreeDeleter> ShapeMemo;
+  size_t ShapeMemoBytes = 0;
   vtkDataSet* BuiltOn = nullptr; // the data set of the last build (compared, never dereferenced)
   std::string Phases; // "name ms; ..." of the last build, conversion and tree phases
   bool Valid = false;
@@ -90,6 +100,21 @@ namespace
 // 0.56-0.68x and the build from 3.5-7.8x to 1.0-2.4x, and rays went from 4.8-8.4x to 6.4-9.6x
 // faster than VTK's, FindCell within the noise (docs/bench_locators.md); on the volume grids
 // one level up costs FindCell 20%, so they keep the volume rule. A first 3-D cell ends the scan.
+// Whether any cell is a hexahedron, wedge or pyramid (the cells ConvexShapeMemo serves).
+bool HasConvexPolyhedra(const mtree::CellSet& cells)
+{
+  const size_t scan = cells.uniformType() ? std::min<size_t>(cells.size(), 1) : cells.size();
+  for (size_t c = 0; c < scan; ++c)
+  {
+    const uint8_t t = cells.type(c);
+    if (t == mtree::kHexahedron || t == mtree::kWedge || t == mtree::kPyramid)
+    {
+      return true;
+    }
+  }
+  return false;
+}
+
 bool NoVolumeCells(const mtree::CellSet& cells)
 {
   // Each type's dimension from VTK's own cell class, once per type met.
@@ -878,6 +903,8 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   vtkMatrixTreeLocatorInternals& in = *this->Internals;
   in.Valid = false;
   in.CLUploaded = false;
+  in.ShapeMemo.reset();
+  in.ShapeMemoBytes = 0;
   using Clock = std::chrono::steady_clock;
   const Clock::time_point tStart = Clock::now();
   auto msSince = [](Clock::time_point t) {
@@ -1133,6 +1160,12 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   // does not count: a rebuild allocates them again.
   in.Tree.releaseBuildScratch();
   const double releaseMs = msSince(tRelease);
+  if (HasConvexPolyhedra(in.Cells))
+  {
+    // calloc: zero pages from the system for a large grid, touched only where rays go.
+    in.ShapeMemo.reset(static_cast<uint8_t*>(std::calloc(in.Cells.size(), 1)));
+    in.ShapeMemoBytes = in.ShapeMemo ? in.Cells.size() : 0;
+  }
   {
     const mtree::Vec3 m = in.Cells.maxExtent();
     in.MaxCellExtent[0] = m.x;
@@ -1271,7 +1304,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       double tc;
       int face = -1;
       const mtree::CellVerdict verdict =
-        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc, &face);
+        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc, &face, in.ShapeMemo.get());
       if (verdict == mtree::CellVerdict::kMiss)
       {
         CountQuery(kRayProvedMisses);
@@ -2275,7 +2308,9 @@ vtkIdType vtkMatrixTreeLocator::GetNumberOfReferences()
 vtkIdType vtkMatrixTreeLocator::GetMemorySize()
 {
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
-  return in.Valid ? static_cast<vtkIdType>(in.Tree.bytes() + in.Cells.bytes() + in.LeafBoxes.size()) : 0;
+  return in.Valid
+    ? static_cast<vtkIdType>(in.Tree.bytes() + in.Cells.bytes() + in.LeafBoxes.size() + in.ShapeMemoBytes)
+    : 0;
 }
 const char* vtkMatrixTreeLocator::GetBuildPhases()
 {

@@ -64,6 +64,8 @@ struct Tally {
   long long tetHits = 0, certain = 0;  // tetrahedra hit by VTK at tol 0; of those decided by tetraFirstHitIfCertain
   long long polyHits = 0, polyCertain = 0;  // the same for hexahedra, wedges and pyramids (convexFirstHitIfCertain)
   long long polyMisses = 0;  // pairs convexFirstHitIfCertain proves missed (decideCell's kMiss beyond segmentMayHitCell)
+  long long memoDecided = 0;  // decideCell calls that found the cell's ConvexShapeMemo byte set
+  std::vector<uint8_t> memo;  // one ConvexShapeMemo byte per cell, shared by every segment of the test
   long long misses() const { return boxHits - trueHits; }
 };
 
@@ -113,8 +115,21 @@ void checkSegment(vtkDataSet* ds, const mtree::CellSet& cells, const double p1[3
     const bool may = mtree::segmentMayHitCell(frame, cells, c, tMax);
     // The locator's one-pass decision gives the same answers as the two calls.
     double td = -1;
-    const mtree::CellVerdict verdict = mtree::decideCell(frame, cells, c, tMax, true, td);
+    int fd = -1;
+    const mtree::CellVerdict verdict = mtree::decideCell(frame, cells, c, tMax, true, td, &fd);
     ASSERT_EQ(verdict == mtree::CellVerdict::kMiss, !may || provedMiss) << "cell " << c;
+    // With the per-cell shape memo (the locator's): the same verdict, t and face, whether the
+    // byte was already set by an earlier segment or is set by this call.
+    if (tally.memo.size() != cells.size()) tally.memo.assign(cells.size(), 0);
+    tally.memoDecided += tally.memo[c] != 0;
+    double tm = -1;
+    int fm = -1;
+    const mtree::CellVerdict vm = mtree::decideCell(frame, cells, c, tMax, true, tm, &fm, tally.memo.data());
+    ASSERT_EQ(vm, verdict) << "cell " << c << " memo " << int(tally.memo[c]);
+    if (verdict == mtree::CellVerdict::kCertain) {
+      ASSERT_EQ(tm, td) << "cell " << c;
+      ASSERT_EQ(fm, fd) << "cell " << c;
+    }
     if (may) {
       ASSERT_EQ(verdict == mtree::CellVerdict::kCertain, certain) << "cell " << c;
       if (certain) {
@@ -256,6 +271,8 @@ TEST_P(SegmentFilterGrid, RejectionsAgreeWithVtk) {
   // The brick's hexahedra and prisms have planar faces: most of their hits are certain too.
   if (tally.polyHits > 100 && gc.polyCertainFraction > 0) {
     EXPECT_GT(tally.polyCertain, gc.polyCertainFraction * tally.polyHits);
+    // And the shape memo was met set (the check above compared its verdicts on those calls).
+    EXPECT_GT(tally.memoDecided, 0);
   }
   ASSERT_GT(tally.boxHits, 1000);
   // Worth calling: on tetrahedra most of the candidates VTK would miss are proved missed. The
@@ -398,8 +415,62 @@ TEST(SegmentFilter, ConvexCellsCertainHitsAreVtks) {
           EXPECT_EQ(tally.polyCertain, 0);
         } else if (off == 0.0) {
           EXPECT_GT(tally.polyCertain, 0.25 * tally.polyHits) << tally.polyHits;
+          EXPECT_GT(tally.memoDecided, 0);
         }
       }
+}
+
+// The ConvexShapeMemo byte decideCell leaves for a cell: kPlanarConvex with the faces whose
+// normals point inwards for planar convex cells (a cube's points in VTK's order, then mirrored,
+// which turns every face's winding), kNotConvex for a tangled or flat cell, nothing for a warped
+// one (planar only to a long segment's round-off, it is checked in full each time); and the
+// verdicts with the memo set are those without (checkScaledCell above, on many segments).
+TEST(SegmentFilter, ConvexShapeMemoStates) {
+  using Memo = mtree::ConvexShapeMemo;
+  using P = std::vector<std::array<double, 3>>;
+  const P cube = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  P mirrored = cube, warped = cube, tangled = cube, flat = cube;
+  for (auto& p : mirrored) p[2] = -p[2];
+  warped[6][2] += 0.1;
+  std::swap(tangled[6], tangled[7]);
+  for (auto& p : flat) p[2] *= 1e-5;
+  const struct {
+    const char* name;
+    const P* pts;
+    int expect;  // -1: kUnknown, 0: kNotConvex, 1: kPlanarConvex
+  } cases[] = {{"cube", &cube, 1}, {"mirrored", &mirrored, 1}, {"warped", &warped, -1}, {"tangled", &tangled, 0},
+               {"flat", &flat, 0}};
+  uint8_t flipsCube = 0xff, flipsMirrored = 0xff;
+  for (const auto& cs : cases) {
+    SCOPED_TRACE(cs.name);
+    std::vector<double> pts;
+    for (const auto& p : *cs.pts) pts.insert(pts.end(), p.begin(), p.end());
+    const mtree::CellSet cells(std::move(pts), std::vector<uint32_t>{0, 8}, std::vector<uint32_t>{0, 1, 2, 3, 4, 5, 6, 7},
+                               std::vector<uint8_t>{mtree::kHexahedron}, 1);
+    // A segment through the cell's middle: every check runs.
+    const mtree::SegmentFrame frame{mtree::Vec3(-0.5, 0.41, 0.37 * (*cs.pts)[4][2]),
+                                    mtree::Vec3(1.5, 0.53, 0.61 * (*cs.pts)[4][2]), 0.0};
+    uint8_t memo = 0;
+    double t = -1, tm = -1;
+    const mtree::CellVerdict v = mtree::decideCell(frame, cells, 0, 1.0, true, t);
+    const mtree::CellVerdict first = mtree::decideCell(frame, cells, 0, 1.0, true, tm, nullptr, &memo);
+    const uint8_t after = memo;
+    const mtree::CellVerdict second = mtree::decideCell(frame, cells, 0, 1.0, true, tm, nullptr, &memo);
+    EXPECT_EQ(first, v);
+    EXPECT_EQ(second, v);
+    EXPECT_EQ(memo, after);
+    if (cs.expect == 1) {
+      ASSERT_TRUE(after & Memo::kPlanarConvex) << int(after);
+      EXPECT_EQ(v, mtree::CellVerdict::kCertain);
+      EXPECT_EQ(tm, t);
+      (cs.pts == &cube ? flipsCube : flipsMirrored) = after & Memo::kFlipsMask;
+    } else {
+      EXPECT_EQ(after, cs.expect == 0 ? Memo::kNotConvex : Memo::kUnknown);
+      EXPECT_NE(v, mtree::CellVerdict::kCertain);
+    }
+  }
+  // Mirroring turns every face inside out: the flips are complements over the six faces.
+  EXPECT_EQ(flipsCube ^ flipsMirrored, 0x3f);
 }
 
 // tetraCertainHitFace: where it names a face, vtkTetra::IntersectWithLine at tol 0 finds its hit

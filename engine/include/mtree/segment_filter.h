@@ -406,8 +406,27 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t, i
 /// of VTK's exact (tol 0) face tests can accept a crossing: VTK reports no hit.
 /// convexFirstHitIfCertain's test on the cell's points p (topo's count), their bounds lo, hi and
 /// largest coordinate magnitude vmag; f valid, f.tol == 0 and miss (if given) false on entry.
+/// memo (optional): the cell's ConvexShapeMemo byte (see there); the verdicts are the same with
+/// or without it.
 inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* topo, const Vec3* p, Vec3 lo, Vec3 hi,
-                                    double vmag, double& t, int* face, bool* miss);
+                                    double vmag, double& t, int* face, bool* miss, uint8_t* memo = nullptr);
+
+/// What convexCertainFromPoints learns of a cell that does not depend on the segment, kept in one
+/// byte per cell so that the next segment skips the checks: 0 (kUnknown) until a first call has
+/// decided; kNotConvex for a degenerate, flat or non-convex cell (the test then always answers
+/// false); kPlanarConvex | flips for a convex, non-degenerate cell whose quad faces are planar
+/// within the round-off of the cell's own coordinates (64 eps vmag / L, where a call allows
+/// 64 eps max(|segment|, vmag) / L, never less: planar for every segment), bit i of flips set
+/// where face i's computed normal points inwards. A cell planar only with a long segment's
+/// looser round-off stays kUnknown and is checked in full each time, as without the memo.
+/// Reads and writes are relaxed atomics: threads that race store the same byte.
+struct ConvexShapeMemo {
+  static constexpr uint8_t kUnknown = 0, kNotConvex = 0x40, kPlanarConvex = 0x80, kFlipsMask = 0x3f;
+  static uint8_t load(const uint8_t* m) { return m ? __atomic_load_n(m, __ATOMIC_RELAXED) : kUnknown; }
+  static void store(uint8_t* m, uint8_t v) {
+    if (m) __atomic_store_n(m, v, __ATOMIC_RELAXED);
+  }
+};
 
 inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_t c, double& t,
                                     int* face = nullptr, bool* miss = nullptr) {
@@ -433,7 +452,10 @@ inline bool convexFirstHitIfCertain(const SegmentFrame& f, const CellSet& cells,
 }
 
 inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* topo, const Vec3* p, Vec3 lo, Vec3 hi,
-                                    double vmag, double& t, int* face, bool* miss) {
+                                    double vmag, double& t, int* face, bool* miss, uint8_t* memo) {
+  using Memo = ConvexShapeMemo;
+  const uint8_t known = Memo::load(memo);
+  if (known == Memo::kNotConvex) return false;
   const int n = topo->numPoints;
   const double L = norm(hi - lo);
   if (!(L > 0) || !std::isfinite(L)) return false;
@@ -465,33 +487,58 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
     // Unit normal scaled by 1 / L: dot products with it are distances in units of L.
     scale[i] = invL / std::sqrt(nn2);
   }
-  if (degenerate) return false;  // a degenerate face
+  if (degenerate) {  // a degenerate face
+    Memo::store(memo, Memo::kNotConvex);
+    return false;
+  }
+  // The round-off of the cell's own coordinates (planeEps with vmag alone): planar within it is
+  // planar for every segment (the memo's kPlanarConvex).
+  const double cellPlaneEps = 64 * eps * vmag / L;
+  bool cellPlanar = true;
+  uint8_t flips = 0;
   for (int i = 0; i < nf; ++i) {
     const int* v = topo->face[i];
     const bool quad = topo->faceSize[i] == 4;
     Vec3 nrm = nrms[i] * scale[i];
     const Vec3 o = p[v[0]];
-    // Planar (a quad's other points on the plane through v[0] to round-off; a triangle's are
-    // by construction) and convex (every other point of the cell on one side, the inner
-    // one); the topology's faces are wound outward, but a tangled cell may not be: the side
-    // is taken from the cell's points.
-    unsigned onFace = 0;
-    for (int j = 0; j < topo->faceSize[i]; ++j) onFace |= 1u << v[j];
-    if (quad)
-      for (int j = 1; j < 4; ++j)
-        if (!(std::fabs(dot(nrm, p[v[j]] - o)) <= planeEps)) return false;  // warped face
-    double inner = 0;
-    for (int k = 0; k < n; ++k) {
-      if ((onFace >> k) & 1) continue;
-      const double s = dot(nrm, p[k] - o);
-      if (!(std::fabs(s) > 1e-3)) return false;  // a point (nearly) on another face's plane: flat or odd
-      if (inner == 0) inner = s;
-      else if ((s > 0) != (inner > 0)) return false;  // points on both sides: not convex
+    if (known & Memo::kPlanarConvex) {
+      if ((known >> i) & 1) nrm = nrm * -1.0;
+    } else {
+      // Planar (a quad's other points on the plane through v[0] to round-off; a triangle's are
+      // by construction) and convex (every other point of the cell on one side, the inner
+      // one); the topology's faces are wound outward, but a tangled cell may not be: the side
+      // is taken from the cell's points.
+      unsigned onFace = 0;
+      for (int j = 0; j < topo->faceSize[i]; ++j) onFace |= 1u << v[j];
+      if (quad)
+        for (int j = 1; j < 4; ++j) {
+          const double off = std::fabs(dot(nrm, p[v[j]] - o));
+          if (!(off <= planeEps)) return false;  // warped face
+          cellPlanar = cellPlanar && off <= cellPlaneEps;
+        }
+      double inner = 0;
+      for (int k = 0; k < n; ++k) {
+        if ((onFace >> k) & 1) continue;
+        const double s = dot(nrm, p[k] - o);
+        if (!(std::fabs(s) > 1e-3)) {  // a point (nearly) on another face's plane: flat or odd
+          Memo::store(memo, Memo::kNotConvex);
+          return false;
+        }
+        if (inner == 0) inner = s;
+        else if ((s > 0) != (inner > 0)) {  // points on both sides: not convex
+          Memo::store(memo, Memo::kNotConvex);
+          return false;
+        }
+      }
+      if (inner > 0) {  // outward: the cell's points lie at negative distance
+        nrm = nrm * -1.0;
+        flips = static_cast<uint8_t>(flips | 1u << i);
+      }
     }
-    if (inner > 0) nrm = nrm * -1.0;  // outward: the cell's points lie at negative distance
     l1[i] = -dot(nrm, f.p1 - o);
     dl[i] = -dot(nrm, f.d);
   }
+  if (!(known & Memo::kPlanarConvex) && cellPlanar) Memo::store(memo, static_cast<uint8_t>(Memo::kPlanarConvex | flips));
   // A quad face's crossing must also be away from both its diagonals (in its plane: distance to
   // the diagonal's line).
   auto nearDiagonal = [&](double tc, int ic) {
@@ -549,10 +596,11 @@ inline bool firstHitIfCertain(const SegmentFrame& f, const CellSet& cells, size_
 /// What the ray queries ask of a candidate: segmentMayHitCell (kMiss: VTK cannot hit it at
 /// t <= tMax) and then, with wantCertain, firstHitIfCertain (kCertain, with t; kMiss where it
 /// proves that VTK reports no hit at all), the points of a tetrahedron read once for both.
-/// kAskVtk otherwise.
+/// kAskVtk otherwise. shapeMemo (optional): one ConvexShapeMemo byte per cell of `cells`, zero
+/// at first, shared by every query on these cells (the same verdicts, fewer checks).
 enum class CellVerdict { kMiss, kAskVtk, kCertain };
 inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_t c, double tMax, bool wantCertain,
-                              double& t, int* face = nullptr) {
+                              double& t, int* face = nullptr, uint8_t* shapeMemo = nullptr) {
   if (face) *face = -1;
   if (f.valid && cells.type(c) == kTetra && cells.numCellPoints(c) == 4) {
     const Vec3 v[4] = {cells.cellPoint(c, 0), cells.cellPoint(c, 1), cells.cellPoint(c, 2), cells.cellPoint(c, 3)};
@@ -577,7 +625,8 @@ inline CellVerdict decideCell(const SegmentFrame& f, const CellSet& cells, size_
       const double r = rf.radius(f);
       if (std::isfinite(r) && rf.outside(f, r, tMax)) return CellVerdict::kMiss;
       bool miss = false;
-      if (convexCertainFromPoints(f, topo, p, rf.lo, rf.hi, rf.vmag, t, face, &miss)) return CellVerdict::kCertain;
+      if (convexCertainFromPoints(f, topo, p, rf.lo, rf.hi, rf.vmag, t, face, &miss, shapeMemo ? shapeMemo + c : nullptr))
+        return CellVerdict::kCertain;
       return miss ? CellVerdict::kMiss : CellVerdict::kAskVtk;
     }
   }
