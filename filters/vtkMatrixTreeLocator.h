@@ -19,7 +19,10 @@
  * Settings: TreeType (OCTREE default, KDTREE), Height (0 = chosen from the cells' sizes),
  * BlockSize (8), NumberOfThreads for the build (0 = all), BuildSort (COUNTING, or the paper's
  * RADIX: same tree). Superclass settings used:
- * UseExistingSearchStructure (keep the tree when the data set changes), LazyEvaluation
+ * UseExistingSearchStructure (keep the tree when the data set changes: the queries then answer
+ * for the cells the build saw, whose arrays the locator holds; coordinates changed in place in
+ * those arrays need a rebuild, since the tree and the one byte per hexahedron, wedge or pyramid
+ * in which rays remember its face planes' planarity and orientation describe the old ones), LazyEvaluation
  * (build on the first query), CacheCellBounds (default off here: the cells' float bounds, 24
  * bytes per cell, are freed after the build; on keeps them for the queries that read them:
  * IntersectWithLine with a tolerance > 0, FindClosestPoint, FindCellsWithinBounds, which
