@@ -74,8 +74,7 @@ struct vtkMatrixTreeLocatorInternals
   {
     void operator()(uint8_t* p) const { std::free(p); }
   };
-  std::unique_ptr<uint8_t[], FreeDeleter> ShapeMemo;
-  size_t ShapeMemoBytes = 0;
+  std::unique_ptr<uint8_t[], FreeDeleter> ShapeMemo; // Cells.size() bytes when allocated
   vtkDataSet* BuiltOn = nullptr; // the data set of the last build (compared, never dereferenced)
   std::string Phases; // "name ms; ..." of the last build, conversion and tree phases
   bool Valid = false;
@@ -93,21 +92,15 @@ vtkStandardNewMacro(vtkMatrixTreeLocator);
 
 namespace
 {
-// Whether no cell is 3-D (a surface; lines and vertices too): the automatic LeafScale and
-// MaxCandidates are then 4 and 3 instead of 1 and 16, about two levels up from the volume rule
-// (leaves of about four median triangle extents, not one). On the five surface meshes that cut
-// references per triangle from 6-10 to 1.8-2.3, memory from 2.2-3.7x vtkStaticCellLocator's to
-// 0.56-0.68x and the build from 3.5-7.8x to 1.0-2.4x, and rays went from 4.8-8.4x to 6.4-9.6x
-// faster than VTK's, FindCell within the noise (docs/bench_locators.md); on the volume grids
-// one level up costs FindCell 20%, so they keep the volume rule. A first 3-D cell ends the scan.
-// Whether any cell is a hexahedron, wedge or pyramid (the cells ConvexShapeMemo serves).
-bool HasConvexPolyhedra(const mtree::CellSet& cells)
+// Whether some cell's type satisfies pred: one type is asked once when all cells share it,
+// else the cells are scanned in order until pred holds.
+template <class Pred>
+bool AnyCellType(const mtree::CellSet& cells, Pred pred)
 {
   const size_t scan = cells.uniformType() ? std::min<size_t>(cells.size(), 1) : cells.size();
   for (size_t c = 0; c < scan; ++c)
   {
-    const uint8_t t = cells.type(c);
-    if (t == mtree::kHexahedron || t == mtree::kWedge || t == mtree::kPyramid)
+    if (pred(cells.type(c)))
     {
       return true;
     }
@@ -115,26 +108,33 @@ bool HasConvexPolyhedra(const mtree::CellSet& cells)
   return false;
 }
 
+// Whether no cell is 3-D (a surface; lines and vertices too): the automatic LeafScale and
+// MaxCandidates are then 4 and 3 instead of 1 and 16, about two levels up from the volume rule
+// (leaves of about four median triangle extents, not one). On the five surface meshes that cut
+// references per triangle from 6-10 to 1.8-2.3, memory from 2.2-3.7x vtkStaticCellLocator's to
+// 0.56-0.68x and the build from 3.5-7.8x to 1.0-2.4x, and rays went from 4.8-8.4x to 6.4-9.6x
+// faster than VTK's, FindCell within the noise (docs/bench_locators.md); on the volume grids
+// one level up costs FindCell 20%, so they keep the volume rule. A first 3-D cell ends the scan.
 bool NoVolumeCells(const mtree::CellSet& cells)
 {
   // Each type's dimension from VTK's own cell class, once per type met.
   signed char dim[256];
   std::fill(dim, dim + 256, static_cast<signed char>(-1));
-  const size_t scan = cells.uniformType() ? std::min<size_t>(cells.size(), 1) : cells.size();
-  for (size_t c = 0; c < scan; ++c)
-  {
-    const uint8_t t = cells.type(c);
+  return !AnyCellType(cells, [&dim](uint8_t t) {
     if (dim[t] < 0)
     {
       vtkSmartPointer<vtkCell> cell = vtkSmartPointer<vtkCell>::Take(vtkGenericCell::InstantiateCell(t));
       dim[t] = static_cast<signed char>(cell ? cell->GetCellDimension() : 0);
     }
-    if (dim[t] == 3)
-    {
-      return false;
-    }
-  }
-  return true;
+    return dim[t] == 3;
+  });
+}
+
+// Whether any cell is a hexahedron, wedge or pyramid (the cells ConvexShapeMemo serves).
+bool HasConvexPolyhedra(const mtree::CellSet& cells)
+{
+  return AnyCellType(cells,
+    [](uint8_t t) { return t == mtree::kHexahedron || t == mtree::kWedge || t == mtree::kPyramid; });
 }
 
 // Distance squared from x to a box given as (lo, hi).
@@ -904,7 +904,6 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   in.Valid = false;
   in.CLUploaded = false;
   in.ShapeMemo.reset();
-  in.ShapeMemoBytes = 0;
   using Clock = std::chrono::steady_clock;
   const Clock::time_point tStart = Clock::now();
   auto msSince = [](Clock::time_point t) {
@@ -1164,7 +1163,6 @@ void vtkMatrixTreeLocator::ForceBuildLocator()
   {
     // calloc: zero pages from the system for a large grid, touched only where rays go.
     in.ShapeMemo.reset(static_cast<uint8_t*>(std::calloc(in.Cells.size(), 1)));
-    in.ShapeMemoBytes = in.ShapeMemo ? in.Cells.size() : 0;
   }
   {
     const mtree::Vec3 m = in.Cells.maxExtent();
@@ -2309,7 +2307,8 @@ vtkIdType vtkMatrixTreeLocator::GetMemorySize()
 {
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
   return in.Valid
-    ? static_cast<vtkIdType>(in.Tree.bytes() + in.Cells.bytes() + in.LeafBoxes.size() + in.ShapeMemoBytes)
+    ? static_cast<vtkIdType>(in.Tree.bytes() + in.Cells.bytes() + in.LeafBoxes.size() +
+        (in.ShapeMemo ? in.Cells.size() : 0))
     : 0;
 }
 const char* vtkMatrixTreeLocator::GetBuildPhases()
