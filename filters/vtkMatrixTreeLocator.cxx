@@ -540,6 +540,14 @@ void PolygonTypes(vtkDataSet* ds, const I* offsets, vtkIdType nc, std::vector<ui
   }
 }
 
+// How this VTK's vtkQuad::IntersectWithLine splits a quad (segment_filter.h's QuadSplit): with it
+// known, the ray queries decide hexahedra, wedges and pyramids with slightly warped faces
+// without VTK too. Known for 9.1 (tests/cpp/test_segment_filter checks it against VTK).
+constexpr mtree::QuadSplit kVtkQuadSplit =
+  VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) && VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0)
+  ? mtree::QuadSplit::kDiagonal02
+  : mtree::QuadSplit::kUnknown;
+
 // vtkHexahedron, vtkWedge and vtkTetra::IntersectWithLine (VTK 9.1) for a segment whose hit is
 // certain to lie on face `face` (convexFirstHitIfCertain's or tetraCertainHit's face: every other
 // face of the cell is far from the line, so VTK's loop over the faces finds only this one, or
@@ -1244,7 +1252,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
   CountQuery(kRayQueries);
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
-  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), tol);
+  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), tol, kVtkQuadSplit);
   double best = VTK_DOUBLE_MAX, tt, xx[3], pc[3];
   int sid;
   vtkIdType bestId = -1;
@@ -1463,7 +1471,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(
   std::unordered_set<vtkIdType> seen;
   vtkNew<vtkGenericCell> cell;
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
-  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), 0.0);
+  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), 0.0, kVtkQuadSplit);
   in.Tree.traverseRay(
     o, d, 0.0, 1.0,
     [&](const uint32_t* ids, uint32_t count, double, double) {

@@ -73,7 +73,7 @@ struct Tally {
 /// with VTK. tMax is 1 and, for half the calls, the parameter of a random point on the segment.
 void checkSegment(vtkDataSet* ds, const mtree::CellSet& cells, const double p1[3], const double p2[3], double tol,
                   double tMax, vtkGenericCell* cell, Tally& tally) {
-  const mtree::SegmentFrame frame{mtree::Vec3(p1), mtree::Vec3(p2), tol};
+  const mtree::SegmentFrame frame{mtree::Vec3(p1), mtree::Vec3(p2), tol, mtest::kVtkQuadSplit};
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - o;
   for (size_t c = 0; c < cells.size(); ++c) {
     mtree::Box b = cells.exactBounds(c);
@@ -291,6 +291,59 @@ INSTANTIATE_TEST_SUITE_P(Grids, SegmentFilterGrid,
                            return name.substr(0, name.find('.'));
                          });
 
+/// A hexahedral grid of n^3 unit cells whose points are moved by up to `jitter` (of a cell) along
+/// each axis: every face is warped, by about the jitter, as the faces of real hexahedral meshes
+/// are (disk_out_ref's: 1e-8 to 1e-3 of a cell).
+vtkSmartPointer<vtkUnstructuredGrid> jitteredHexGrid(int n, double jitter, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(-1, 1);
+  vtkNew<vtkPoints> pts;
+  pts->SetDataTypeToDouble();
+  for (int k = 0; k <= n; ++k)
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i)
+        pts->InsertNextPoint(i + jitter * U(rng), j + jitter * U(rng), k + jitter * U(rng));
+  auto g = vtkSmartPointer<vtkUnstructuredGrid>::New();
+  g->SetPoints(pts);
+  auto id = [n](int i, int j, int k) { return static_cast<vtkIdType>((k * (n + 1) + j) * (n + 1) + i); };
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const vtkIdType c[8] = {id(i, j, k),         id(i + 1, j, k),         id(i + 1, j + 1, k),
+                                id(i, j + 1, k),     id(i, j, k + 1),         id(i + 1, j, k + 1),
+                                id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
+        g->InsertNextCell(12, 8, c);
+      }
+  return g;
+}
+
+// Warped hexahedra: within kMaxFaceWarp (over the crossings' |cos|) the hits are certain, at
+// VTK's t (the plane of the triangle of vtkQuad's split that holds the hit, not the face's
+// plane, which is up to the warp off); beyond it VTK decides. checkSegment checks every verdict
+// against VTK's own vtkHexahedron.
+TEST(SegmentFilter, WarpedHexahedraCertainHitsAreVtks) {
+  long long planarCertain = -1;  // with no jitter (first): the share the warped grids must keep
+  for (const double jitter : {0.0, 1e-7, 1e-5, 1e-3}) {
+    SCOPED_TRACE("jitter " + std::to_string(jitter));
+    auto g = jitteredHexGrid(8, jitter, 5);
+    Tally tally;
+    runDataset(g, 300, 400, tally);
+    if (HasFatalFailure()) return;
+    std::printf("hexahedra jittered by %g: %lld hit at tol 0, %lld certain; %lld proved missed by their face planes\n",
+                jitter, tally.polyHits, tally.polyCertain, tally.polyMisses);
+    ASSERT_GT(tally.polyHits, 200);
+    if (jitter == 0.0) {
+      planarCertain = tally.polyCertain;
+      ASSERT_GT(planarCertain, 50);
+    } else if (jitter <= 1e-5) {
+      EXPECT_GT(tally.polyCertain, 0.9 * planarCertain);
+      EXPECT_GT(tally.memoDecided, 0);
+    } else {
+      EXPECT_LT(tally.polyCertain, 0.05 * tally.polyHits);
+    }
+  }
+}
+
 TEST(SegmentFilter, SurfaceTrianglesAgreeWithVtk) {
   vtkNew<vtkPLYReader> r;
   const std::string path = mtest::dataPath("meshes/bunny.ply");
@@ -390,19 +443,30 @@ void checkScaledCell(int type, const std::vector<std::array<double, 3>>& v, doub
 TEST(SegmentFilter, ConvexCellsCertainHitsAreVtks) {
   using P = std::vector<std::array<double, 3>>;
   const P cube = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-  P sheared = cube, warped = cube, tangled = cube;
+  P sheared = cube, warped = cube, tangled = cube, bent = cube, twisted = cube;
   for (auto& p : sheared) p[0] += 0.3 * p[2], p[1] += 0.2 * p[2] + 0.1 * p[0];
-  warped[6][2] += 0.1;  // non-planar faces: VTK must decide
+  warped[6][2] += 0.1;  // non-planar faces, far beyond kMaxFaceWarp: VTK must decide
   std::swap(tangled[6], tangled[7]);
+  // Warped as real meshes are (disk_out_ref's faces, 1e-8 to 1e-3 of the cell): within
+  // kMaxFaceWarp the test answers, and must still give VTK's t (the plane of the triangle of
+  // vtkQuad's split that holds the hit).
+  bent[6][2] += 3e-6;
+  for (auto& p : twisted) p[0] += 2e-5 * p[1] * p[2], p[1] -= 1e-5 * p[0] * p[2];
   const P wedge = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.1, 0, 1}, {1.1, 0, 1}, {0.1, 1, 1}};
+  P wedgeBent = wedge;
+  wedgeBent[4][1] += 4e-6;
   const P pyramid = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.4, 0.5, 1}};
+  P pyramidBent = pyramid;
+  pyramidBent[2][2] += 5e-6;
   const struct {
     const char* name;
     int type;
     const P* pts;
-    bool planar;
+    bool planar;  // certain hits expected (planar, or warped within the limit)
   } cases[] = {{"cube", 12, &cube, true},          {"sheared", 12, &sheared, true}, {"warped", 12, &warped, false},
-               {"tangled", 12, &tangled, false},   {"wedge", 13, &wedge, true},     {"pyramid", 14, &pyramid, true}};
+               {"tangled", 12, &tangled, false},   {"wedge", 13, &wedge, true},     {"pyramid", 14, &pyramid, true},
+               {"bent", 12, &bent, true},          {"twisted", 12, &twisted, true}, {"wedge bent", 13, &wedgeBent, true},
+               {"pyramid bent", 14, &pyramidBent, true}};
   for (const auto& cs : cases)
     for (double s : {1.0, 1e-12, 1e12})
       for (double off : {0.0, 1e12, -3e6}) {
@@ -422,24 +486,26 @@ TEST(SegmentFilter, ConvexCellsCertainHitsAreVtks) {
 
 // The ConvexShapeMemo byte decideCell leaves for a cell: kPlanarConvex with the faces whose
 // normals point inwards for planar convex cells (a cube's points in VTK's order, then mirrored,
-// which turns every face's winding), kNotConvex for a tangled or flat cell, nothing for a warped
-// one (planar only to a long segment's round-off, it is checked in full each time); and the
-// verdicts with the memo set are those without (checkScaledCell above, on many segments).
+// which turns every face's winding), kWarpedConvex with the cube's flips for a slightly warped
+// cube (within kMaxFaceWarp: still certain), kNotConvex for a tangled or flat cell, nothing for
+// one warped beyond the limit (checked in full each time); and the verdicts with the memo set
+// are those without (checkScaledCell above, on many segments).
 TEST(SegmentFilter, ConvexShapeMemoStates) {
   using Memo = mtree::ConvexShapeMemo;
   using P = std::vector<std::array<double, 3>>;
   const P cube = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-  P mirrored = cube, warped = cube, tangled = cube, flat = cube;
+  P mirrored = cube, warped = cube, tangled = cube, flat = cube, bent = cube;
   for (auto& p : mirrored) p[2] = -p[2];
   warped[6][2] += 0.1;
+  bent[6][2] += 3e-6;
   std::swap(tangled[6], tangled[7]);
   for (auto& p : flat) p[2] *= 1e-5;
   const struct {
     const char* name;
     const P* pts;
-    int expect;  // -1: kUnknown, 0: kNotConvex, 1: kPlanarConvex
-  } cases[] = {{"cube", &cube, 1}, {"mirrored", &mirrored, 1}, {"warped", &warped, -1}, {"tangled", &tangled, 0},
-               {"flat", &flat, 0}};
+    int expect;  // -1: kUnknown, 0: kNotConvex, 1: kPlanarConvex, 2: kWarpedConvex
+  } cases[] = {{"cube", &cube, 1},       {"mirrored", &mirrored, 1}, {"warped", &warped, -1},
+               {"tangled", &tangled, 0}, {"flat", &flat, 0},         {"bent", &bent, 2}};
   uint8_t flipsCube = 0xff, flipsMirrored = 0xff;
   for (const auto& cs : cases) {
     SCOPED_TRACE(cs.name);
@@ -449,7 +515,7 @@ TEST(SegmentFilter, ConvexShapeMemoStates) {
                                std::vector<uint8_t>{mtree::kHexahedron}, 1);
     // A segment through the cell's middle: every check runs.
     const mtree::SegmentFrame frame{mtree::Vec3(-0.5, 0.41, 0.37 * (*cs.pts)[4][2]),
-                                    mtree::Vec3(1.5, 0.53, 0.61 * (*cs.pts)[4][2]), 0.0};
+                                    mtree::Vec3(1.5, 0.53, 0.61 * (*cs.pts)[4][2]), 0.0, mtest::kVtkQuadSplit};
     uint8_t memo = 0;
     double t = -1, tm = -1;
     const mtree::CellVerdict v = mtree::decideCell(frame, cells, 0, 1.0, true, t);
@@ -459,8 +525,13 @@ TEST(SegmentFilter, ConvexShapeMemoStates) {
     EXPECT_EQ(first, v);
     EXPECT_EQ(second, v);
     EXPECT_EQ(memo, after);
-    if (cs.expect == 1) {
-      ASSERT_TRUE(after & Memo::kPlanarConvex) << int(after);
+    if (cs.expect == 2) {
+      ASSERT_EQ(after & ~Memo::kFlipsMask, Memo::kWarpedConvex) << int(after);
+      EXPECT_EQ(v, mtree::CellVerdict::kCertain);
+      EXPECT_EQ(tm, t);
+      EXPECT_EQ(after & Memo::kFlipsMask, flipsCube);  // listed after the cube
+    } else if (cs.expect == 1) {
+      ASSERT_TRUE(Memo::planar(after)) << int(after);
       EXPECT_EQ(v, mtree::CellVerdict::kCertain);
       EXPECT_EQ(tm, t);
       (cs.pts == &cube ? flipsCube : flipsMirrored) = after & Memo::kFlipsMask;

@@ -12,12 +12,21 @@
 #include <vtkPoints.h>
 #include <vtkSmartPointer.h>
 #include <vtkUnstructuredGrid.h>
+#include <vtkVersionMacros.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
 #include "mtree/cells.h"
+#include "mtree/segment_filter.h"
 #include "test_util.h"
 
 namespace mtest {
+
+/// How the VTK these tests link splits a quad for IntersectWithLine (segment_filter.h's
+/// QuadSplit), as the locator tells its ray tests: the split of 9.1, unknown for other versions.
+constexpr mtree::QuadSplit kVtkQuadSplit =
+    VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) && VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0)
+        ? mtree::QuadSplit::kDiagonal02
+        : mtree::QuadSplit::kUnknown;
 
 /// The volume cells of an SU2 mesh (NDIME, NELEM lines "type ids... index", NPOIN lines
 /// "x y z [index]"; markers skipped). SU2 element types are VTK's cell type codes.

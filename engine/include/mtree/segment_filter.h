@@ -35,6 +35,13 @@
 
 namespace mtree {
 
+/// How vtkQuad::IntersectWithLine splits a quad into the two triangles it tests, which decides
+/// where a warped quad face is hit (a planar one is hit at the same point either way):
+///   kUnknown     warped faces are left to VTK (the default: a VTK whose split is not known);
+///   kDiagonal02  VTK 9.1: triangles (0, 1, 2) and (2, 3, 0), whatever the quad's shape (checked
+///                by test_segment_filter against the VTK it links).
+enum class QuadSplit : uint8_t { kUnknown = 0, kDiagonal02 = 1 };
+
 /// The segment p1 -> p2 with its frame, set up once per query.
 struct SegmentFrame {
   Vec3 p1, d;         // the segment is p1 + t d, t in [0, 1]
@@ -44,8 +51,10 @@ struct SegmentFrame {
   double tol = 0;     // VTK's tolerance (a distance)
   double mag = 0;     // largest coordinate magnitude of p1 and p2
   bool valid = false; // false: zero-length or non-finite segment, or bad tol: nothing is rejected
+  QuadSplit quadSplit = QuadSplit::kUnknown;  // the VTK's, for warped quad faces (see QuadSplit)
 
-  SegmentFrame(Vec3 a, Vec3 b, double tolerance) : p1(a), d(b - a), tol(tolerance) {
+  SegmentFrame(Vec3 a, Vec3 b, double tolerance, QuadSplit split = QuadSplit::kUnknown)
+      : p1(a), d(b - a), tol(tolerance), quadSplit(split) {
     const double len2 = dot(d, d);
     if (!isFinite(a) || !isFinite(b) || !(len2 > 0) || !std::isfinite(len2) || !(tolerance >= 0) ||
         !std::isfinite(tolerance))
@@ -230,12 +239,14 @@ inline bool segmentMayHitCell(const SegmentFrame& f, const CellSet& cells, size_
 /// no face plane parallel to it and near, and at both crossings every other face at least m
 /// away, the crossing face's distance at p1 and at p2 at least m, and veto(tc, ic) false (a
 /// cell's own extra test, e.g. a quad's diagonals).
-template <class Veto>
-inline bool certainCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx,
-                             Veto&& veto, int* faces = nullptr) {
+/// certainCrossings' first step: the entry (te, face ie: the last plane the line enters) and the
+/// exit (tx, ix: the first it leaves); false when the line is parallel to a face plane and not m
+/// inside it, or the crossings are missing or out of order.
+inline bool lineCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx, int& ie,
+                          int& ix) {
   te = -std::numeric_limits<double>::infinity();
   tx = std::numeric_limits<double>::infinity();
-  int ie = -1, ix = -1;
+  ie = ix = -1;
   for (int i = 0; i < nf; ++i) {
     if (dl[i] == 0) {
       if (l1[i] < m) return false;  // parallel to a face plane, outside or near it
@@ -248,7 +259,14 @@ inline bool certainCrossings(const double* l1, const double* dl, int nf, double 
       tx = ti, ix = i;
     }
   }
-  if (ie < 0 || ix < 0 || !(te < tx)) return false;
+  return ie >= 0 && ix >= 0 && te < tx;
+}
+
+template <class Veto>
+inline bool certainCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx,
+                             Veto&& veto, int* faces = nullptr) {
+  int ie, ix;
+  if (!lineCrossings(l1, dl, nf, m, te, tx, ie, ix)) return false;
   for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
     for (int j = 0; j < nf; ++j)
       if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
@@ -411,17 +429,40 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t, i
 inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* topo, const Vec3* p, Vec3 lo, Vec3 hi,
                                     double vmag, double& t, int* face, bool* miss, uint8_t* memo = nullptr);
 
+/// The largest warp of a quad face (its points' distance from the plane the test takes for it, in
+/// units of the cell's diagonal L) for which convexCertainFromPoints still answers, and the
+/// largest warp over the |cos| of the crossings (W, see there).
+constexpr double kMaxFaceWarp = 1e-4;
+
+/// The triangle of a quad's split (QuadSplit::kDiagonal02: (0, 1, 2) or (2, 3, 0)) that holds x, a
+/// point near the quad and far (against its warp) from the diagonal 0-2; t where the line
+/// p1 + t d crosses that triangle's plane. False for a degenerate triangle or a line parallel to it.
+inline bool quadSplitCrossing(const SegmentFrame& f, const Vec3 q[4], const Vec3& x, double& t) {
+  const Vec3 e = q[2] - q[0];
+  const Vec3 b = dot(cross(e, x - q[0]), cross(e, q[1] - q[0])) > 0 ? q[1] : q[3];
+  const Vec3 n = cross(b - q[0], e);
+  const double tt = dot(n, q[0] - f.p1) / dot(n, f.d);
+  if (!std::isfinite(tt)) return false;
+  t = tt;
+  return true;
+}
+
 /// What convexCertainFromPoints learns of a cell that does not depend on the segment, kept in one
 /// byte per cell so that the next segment skips the checks: 0 (kUnknown) until a first call has
 /// decided; kNotConvex for a degenerate, flat or non-convex cell (the test then always answers
 /// false); kPlanarConvex | flips for a convex, non-degenerate cell whose quad faces are planar
 /// within the round-off of the cell's own coordinates (64 eps vmag / L, where a call allows
 /// 64 eps max(|segment|, vmag) / L, never less: planar for every segment), bit i of flips set
-/// where face i's computed normal points inwards. A cell planar only with a long segment's
-/// looser round-off stays kUnknown and is checked in full each time, as without the memo.
+/// where face i's computed normal points inwards; kWarpedConvex | flips for a convex cell with
+/// a face warped beyond that round-off (each call measures the warp again against its own
+/// limits). A cell some quad of which is warped beyond the call's limit is left as it is.
 /// Reads and writes are relaxed atomics: threads that race store the same byte.
 struct ConvexShapeMemo {
-  static constexpr uint8_t kUnknown = 0, kNotConvex = 0x40, kPlanarConvex = 0x80, kFlipsMask = 0x3f;
+  static constexpr uint8_t kUnknown = 0, kNotConvex = 0x40, kPlanarConvex = 0x80, kWarpedConvex = 0xc0,
+                           kFlipsMask = 0x3f;
+  /// Convex with its flips known (planar or warped); planar and convex.
+  static bool convex(uint8_t m) { return (m & kPlanarConvex) != 0; }
+  static bool planar(uint8_t m) { return (m & kWarpedConvex) == kPlanarConvex; }
   static uint8_t load(const uint8_t* m) { return m ? __atomic_load_n(m, __ATOMIC_RELAXED) : kUnknown; }
   static void store(uint8_t* m, uint8_t v) {
     if (m) __atomic_store_n(m, v, __ATOMIC_RELAXED);
@@ -495,27 +536,34 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
   // planar for every segment (the memo's kPlanarConvex).
   const double cellPlaneEps = 64 * eps * vmag / L;
   bool cellPlanar = true;
+  // The largest distance of a quad face's point from its plane (units of L); beyond round-off
+  // (planeEps) the cell is warped, and up to kMaxFaceWarp the margins below absorb it.
+  double warp = 0;
+  const double warpLimit = f.quadSplit == QuadSplit::kUnknown ? planeEps : std::max(planeEps, kMaxFaceWarp);
+  const bool convexKnown = Memo::convex(known), planarKnown = Memo::planar(known);
   uint8_t flips = 0;
   for (int i = 0; i < nf; ++i) {
     const int* v = topo->face[i];
     const bool quad = topo->faceSize[i] == 4;
     Vec3 nrm = nrms[i] * scale[i];
     const Vec3 o = p[v[0]];
-    if (known & Memo::kPlanarConvex) {
+    // Planar (a quad's other points on the plane through v[0] to round-off, or within the warp
+    // limit; a triangle's are by construction) and convex (every other point of the cell on one
+    // side, the inner one); the topology's faces are wound outward, but a tangled cell may not
+    // be: the side is taken from the cell's points. The memo's kPlanarConvex skips both checks,
+    // its kWarpedConvex the second.
+    if (quad && !planarKnown)
+      for (int j = 1; j < 4; ++j) {
+        const double off = std::fabs(dot(nrm, p[v[j]] - o));
+        if (!(off <= warpLimit)) return false;  // a face too warped: VTK decides
+        warp = std::max(warp, off);
+        cellPlanar = cellPlanar && off <= cellPlaneEps;
+      }
+    if (convexKnown) {
       if ((known >> i) & 1) nrm = nrm * -1.0;
     } else {
-      // Planar (a quad's other points on the plane through v[0] to round-off; a triangle's are
-      // by construction) and convex (every other point of the cell on one side, the inner
-      // one); the topology's faces are wound outward, but a tangled cell may not be: the side
-      // is taken from the cell's points.
       unsigned onFace = 0;
       for (int j = 0; j < topo->faceSize[i]; ++j) onFace |= 1u << v[j];
-      if (quad)
-        for (int j = 1; j < 4; ++j) {
-          const double off = std::fabs(dot(nrm, p[v[j]] - o));
-          if (!(off <= planeEps)) return false;  // warped face
-          cellPlanar = cellPlanar && off <= cellPlaneEps;
-        }
       double inner = 0;
       for (int k = 0; k < n; ++k) {
         if ((onFace >> k) & 1) continue;
@@ -538,7 +586,28 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
     l1[i] = -dot(nrm, f.p1 - o);
     dl[i] = -dot(nrm, f.d);
   }
-  if (!(known & Memo::kPlanarConvex) && cellPlanar) Memo::store(memo, static_cast<uint8_t>(Memo::kPlanarConvex | flips));
+  if (!convexKnown)
+    Memo::store(memo, static_cast<uint8_t>((cellPlanar ? Memo::kPlanarConvex : Memo::kWarpedConvex) | flips));
+  // Warped: VTK's triangles of a quad face lie within warp L of its plane, not within round-off.
+  // (A cell the memo knows planar has warp 0 here, as it had on the call that set the memo.)
+  const bool warped = warp > planeEps;
+  // The miss proof's and the certain hit's margins (units of L); m for planar faces.
+  double mMiss = m, mc = m;
+  if (warped) {
+    mMiss = m + 2 * warp;
+    // Where the line crosses the entry and exit planes at |cos| c to their normals, VTK's
+    // surface there lies within W = warp / c of the crossing, along the line (units of L), and
+    // every other distance the checks below use moves by at most W over that stretch: they are
+    // made with m + 32 W (32: the face-clear condition's kSteepCrossing 1/20 of it still exceeds
+    // the warp of the faces that must stay clear).
+    double te0, tx0;
+    int ie0, ix0;
+    if (lineCrossings(l1, dl, nf, m, te0, tx0, ie0, ix0)) {
+      const double c = std::min(std::fabs(dl[ie0]), std::fabs(dl[ix0])) * L * f.invLen;
+      const double W = warp / c;
+      mc = W <= kMaxFaceWarp ? m + 32 * W : std::numeric_limits<double>::infinity();
+    }
+  }
   // A quad face's crossing must also be away from both its diagonals (in its plane: distance to
   // the diagonal's line).
   auto nearDiagonal = [&](double tc, int ic) {
@@ -548,7 +617,7 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
     for (int k = 0; k < 2; ++k) {
       const Vec3 a = p[v[k]], e = p[v[k + 2]] - a;
       const Vec3 c = cross(e, x - a);  // |c| / |e|: the distance to the diagonal's line
-      if (!(dot(c, c) >= m * m * L * L * dot(e, e))) return true;
+      if (!(dot(c, c) >= mc * mc * L * L * dot(e, e))) return true;
     }
     return false;
   };
@@ -560,9 +629,9 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
     double upTo = -std::numeric_limits<double>::infinity(), from = std::numeric_limits<double>::infinity();
     bool covered = false;
     for (int i = 0; i < nf; ++i) {
-      if (dl[i] > 0) upTo = std::max(upTo, (-m - l1[i]) / dl[i]);
-      else if (dl[i] < 0) from = std::min(from, (-m - l1[i]) / dl[i]);
-      else covered = covered || l1[i] <= -m;
+      if (dl[i] > 0) upTo = std::max(upTo, (-mMiss - l1[i]) / dl[i]);
+      else if (dl[i] < 0) from = std::min(from, (-mMiss - l1[i]) / dl[i]);
+      else covered = covered || l1[i] <= -mMiss;
     }
     if (covered || upTo >= b || from <= a || upTo >= from) {
       *miss = true;
@@ -571,13 +640,22 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
   }
   double te, tx;
   int crossed[2];
-  if (!certainCrossings(l1, dl, nf, m, te, tx, nearDiagonal, crossed) || !firstCrossingInSegment(te, tx, t))
+  if (!(mc < std::numeric_limits<double>::infinity()) ||
+      !certainCrossings(l1, dl, nf, mc, te, tx, nearDiagonal, crossed) || !firstCrossingInSegment(te, tx, t))
     return false;
+  const int hitFace = t == te ? crossed[0] : crossed[1];
+  if (warped && topo->faceSize[hitFace] == 4) {
+    // The crossing of the plane is up to W off VTK's: t where the line crosses the plane of the
+    // triangle of VTK's split that holds the hit.
+    const int* v = topo->face[hitFace];
+    const Vec3 q[4] = {p[v[0]], p[v[1]], p[v[2]], p[v[3]]};
+    if (!quadSplitCrossing(f, q, f.p1 + f.d * t, t)) return false;
+  }
   if (face) {
     // |dl| = |cos| |d| / L; f.invLen = 1 / |d|.
     const double steep = kSteepCrossing * invL;
     const bool clear = std::fabs(dl[crossed[0]]) * f.invLen >= steep && std::fabs(dl[crossed[1]]) * f.invLen >= steep;
-    *face = clear ? (t == te ? crossed[0] : crossed[1]) : -1;
+    *face = clear ? hitFace : -1;
   }
   return true;
 }
