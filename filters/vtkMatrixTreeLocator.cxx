@@ -44,6 +44,7 @@
 #include <string>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <queue>
 #include <unordered_set>
 #include <vector>
@@ -1252,7 +1253,16 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
   const vtkMatrixTreeLocatorInternals& in = *this->Internals;
   CountQuery(kRayQueries);
   const mtree::Vec3 o(p1), d = mtree::Vec3(p2) - mtree::Vec3(p1);
-  const mtree::SegmentFrame frame(o, mtree::Vec3(p2), tol, kVtkQuadSplit);
+  // The segment's frame (two normalisations) is set up when the first cell is tested: many
+  // segments of a surface scene reach no candidate at all.
+  std::optional<mtree::SegmentFrame> frameStore;
+  auto frame = [&]() -> const mtree::SegmentFrame& {
+    if (!frameStore)
+    {
+      frameStore.emplace(o, mtree::Vec3(p2), tol, kVtkQuadSplit);
+    }
+    return *frameStore;
+  };
   double best = VTK_DOUBLE_MAX, tt, xx[3], pc[3];
   int sid;
   vtkIdType bestId = -1;
@@ -1275,15 +1285,21 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     int deferredFace = -1; // the face holding its hit, where certain (CertainFaceHit)
     best = VTK_DOUBLE_MAX;
     bestId = -1;
-    // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests.
+    // Cells span several leaves: a small direct-mapped mailbox skips most repeated tests (cleared
+    // for the first test).
     vtkIdType mailbox[64];
-    std::fill(mailbox, mailbox + 64, -1);
+    bool mailboxClear = false;
     LeafSegmentFilter::Candidate stackBuf[256];
     std::vector<LeafSegmentFilter::Candidate> heapBuf;
     // boxTest: whether the cell's own bounds are tested first (not needed after the leaf's
     // quantized boxes, which reject as much: a random read saved per candidate).
     auto test = [&](vtkIdType id, bool boxTest) {
       CountQuery(kRayCellTests);
+      if (!mailboxClear)
+      {
+        std::fill(mailbox, mailbox + 64, -1);
+        mailboxClear = true;
+      }
       vtkIdType& slot = mailbox[id & 63];
       if (slot == id)
       {
@@ -1310,7 +1326,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
       double tc;
       int face = -1;
       const mtree::CellVerdict verdict =
-        mtree::decideCell(frame, in.Cells, static_cast<size_t>(id), bound, deferCertain, tc, &face, in.ShapeMemo.get());
+        mtree::decideCell(frame(), in.Cells, static_cast<size_t>(id), bound, deferCertain, tc, &face, in.ShapeMemo.get());
       if (verdict == mtree::CellVerdict::kMiss)
       {
         CountQuery(kRayProvedMisses);
@@ -1413,7 +1429,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     // gives its answer. (A tetrahedron's face is found here, for the winner only.)
     if (deferredFace < 0 && tol == 0.0)
     {
-      deferredFace = mtree::tetraCertainHitFace(frame, in.Cells, static_cast<size_t>(deferredId));
+      deferredFace = mtree::tetraCertainHitFace(frame(), in.Cells, static_cast<size_t>(deferredId));
     }
     const bool faceHit =
       deferredFace >= 0 && CertainFaceHit(in.Cells, deferredId, deferredFace, p1, p2, tol, tt, xx, pc, sid);
