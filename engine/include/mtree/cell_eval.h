@@ -55,6 +55,12 @@
 
 namespace mtree {
 
+namespace cell_eval {
+/// How far outside the unit cell (in pcoords) Newton's first iterate must land before the hull
+/// test (faceSeparates) is tried: inside points never pay for it.
+constexpr double kFarOutside = 0.1;
+}  // namespace cell_eval
+
 /// The engine's answer for a point and a cell: VTK's EvaluatePosition returns 1 (kInside) or 0
 /// or -1 (kOutside: the point is not in the cell), or the engine cannot be sure (kAskVtk).
 enum class PointInCell : int { kOutside = 0, kInside = 1, kAskVtk = -1 };
@@ -190,6 +196,18 @@ struct Hexahedron {
     d[23] = rm * pc[1];
   }
   static PointInCell accept(const double pc[3], double m) { return inCube(pc, kLower, kUpper, m); }
+  // outsideFace: x's margin beyond the hull of the points for VTK to reject it (its pcoords
+  // tolerance and the residual its convergence test leaves, both far smaller), and the face
+  // (VTK's, cyclic) on whose plane pcoords' constraint c (r < 0, r > 1, s < 0, ...) holds.
+  static constexpr double kHullMargin = 1e-3;
+  static int outsideFace(const double pc[3], const int** face) {
+    static constexpr int kFaces[6][4] = {{0, 4, 7, 3}, {1, 2, 6, 5}, {0, 1, 5, 4}, {3, 7, 6, 2}, {0, 3, 2, 1}, {4, 5, 6, 7}};
+    for (int a = 0; a < 3; ++a) {
+      if (pc[a] < -kFarOutside) return *face = kFaces[2 * a], 4;
+      if (pc[a] > 1 + kFarOutside) return *face = kFaces[2 * a + 1], 4;
+    }
+    return 0;
+  }
 };
 
 struct Wedge {
@@ -229,6 +247,17 @@ struct Wedge {
     // r + s <= 1.001: VTK adds, then compares; -inf as the lower limit never decides.
     return conjoin(inCube(pc, -0.001, 1.001, m), classify(pc[0] + pc[1], -HUGE_VAL, 1.001, 2 * m));
   }
+  static constexpr double kHullMargin = 2e-2;
+  static int outsideFace(const double pc[3], const int** face) {
+    static constexpr int kBottom[3] = {0, 1, 2}, kTop[3] = {3, 4, 5};
+    static constexpr int kS0[4] = {0, 1, 4, 3}, kR0[4] = {0, 3, 5, 2}, kRS1[4] = {1, 2, 5, 4};
+    if (pc[2] < -kFarOutside) return *face = kBottom, 3;
+    if (pc[2] > 1 + kFarOutside) return *face = kTop, 3;
+    if (pc[1] < -kFarOutside) return *face = kS0, 4;
+    if (pc[0] < -kFarOutside) return *face = kR0, 4;
+    if (pc[0] + pc[1] > 1 + kFarOutside) return *face = kRS1, 4;
+    return 0;
+  }
 };
 
 struct Pyramid {
@@ -263,7 +292,63 @@ struct Pyramid {
     d[14] = 1.0;
   }
   static PointInCell accept(const double pc[3], double m) { return inCube(pc, -0.001, 1.001, m); }
+  static constexpr double kHullMargin = 2e-2;
+  static int outsideFace(const double pc[3], const int** face) {
+    static constexpr int kBase[4] = {0, 1, 2, 3};
+    static constexpr int kSides[4][3] = {{0, 3, 4}, {1, 2, 4}, {0, 1, 4}, {2, 3, 4}};  // r = 0, r = 1, s = 0, s = 1
+    if (pc[2] < -kFarOutside) return *face = kBase, 4;
+    for (int a = 0; a < 2; ++a) {
+      if (pc[a] < -kFarOutside) return *face = kSides[2 * a], 3;
+      if (pc[a] > 1 + kFarOutside) return *face = kSides[2 * a + 1], 3;
+    }
+    return 0;  // beyond the apex (t > 1) has no face of its own
+  }
 };
+
+/// Whether x lies beyond the plane of `face` (fn points of pts, cyclic; a quad's normal from its
+/// diagonals) by more than mu plus the face's warp, on the side away from every other point of
+/// the cell: then x is more than mu from the convex hull of the cell's points. False when the
+/// other points are not all clearly on one side (a tangled or flat cell), or for NaN.
+/// roundoff: the error of a distance here (a few ulp of the coordinates' magnitude).
+inline bool faceSeparates(const double* pts, int n, const int* face, int fn, const double x[3], double mu,
+                          double roundoff) {
+  auto P = [pts](int i) { return pts + 3 * i; };
+  auto sub = [](const double* a, const double* b, double o[3]) {
+    o[0] = a[0] - b[0], o[1] = a[1] - b[1], o[2] = a[2] - b[2];
+  };
+  double e1[3], e2[3];
+  if (fn == 4) {
+    sub(P(face[2]), P(face[0]), e1);
+    sub(P(face[3]), P(face[1]), e2);
+  } else {
+    sub(P(face[1]), P(face[0]), e1);
+    sub(P(face[2]), P(face[0]), e2);
+  }
+  const double nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+  const double nn = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+  if (!(nn > 0) || !std::isfinite(nn)) return false;
+  const double* o = P(face[0]);
+  auto dist = [&](const double* q) {  // signed distance from the plane through o
+    return ((q[0] - o[0]) * nrm[0] + (q[1] - o[1]) * nrm[1] + (q[2] - o[2]) * nrm[2]) / nn;
+  };
+  unsigned onFace = 0;
+  double warp = 0;
+  for (int j = 0; j < fn; ++j) {
+    onFace |= 1u << face[j];
+    warp = std::max(warp, std::fabs(dist(P(face[j]))));
+  }
+  // The inner side: every other point's (more than round-off away); the hull then lies within
+  // the warp outside the plane.
+  double side = 0;
+  for (int k = 0; k < n; ++k) {
+    if ((onFace >> k) & 1) continue;
+    const double dk = dist(P(k));
+    if (!(std::fabs(dk) > warp + roundoff)) return false;
+    if (side == 0) side = dk > 0 ? 1 : -1;
+    else if ((dk > 0) != (side > 0)) return false;
+  }
+  return -side * dist(x) > mu + warp + roundoff;  // false for NaN
+}
 
 /// The Newton iteration's columns as VTK sums them: f = sum_i p_i w_i, r/s/t = sum_i p_i d_i
 /// (the three derivative blocks), i = 0 ... N-1 in order, each a multiply then an add. VTK does
@@ -442,6 +527,15 @@ inline PointInCell newtonWith(const double* pts, const double x[3], double pcoor
     pc[1] = params[1] - step[2] / det;
     pc[2] = params[2] - step[3] / det;
     adet = std::fabs(det);
+    if (iteration == 0) {
+      // Far outside after the first step (a candidate whose box, not cell, holds x): a face
+      // plane separating x from all the cell's points by the margin settles VTK's "no" without
+      // the remaining steps. Points inside the cell never get here.
+      const int* face = nullptr;
+      const int fn = S::outsideFace(pc, &face);
+      if (fn && faceSeparates(pts, N, face, fn, x, S::kHullMargin * std::sqrt(longest2), kml2 / longest2))
+        return PointInCell::kOutside;
+    }
     bool below[3];
     if (!stepIsClear(pc[0] - params[0], S::kConverged, kml2, adet, below[0]) ||
         !stepIsClear(pc[1] - params[1], S::kConverged, kml2, adet, below[1]) ||
