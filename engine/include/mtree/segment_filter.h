@@ -405,8 +405,16 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t, i
 /// other face plane at least m L away, L the cell's bounding-box diagonal), a quad face's
 /// crossing is m L away from both its diagonals (so whichever split VTK picks, one triangle
 /// holds it well inside and the other well outside), neither crossing is near an end of the
-/// segment, and the cell is not flat. m is tetraFirstHitIfCertain's margin. A warped face, a
-/// non-convex or degenerate cell, and a segment that misses: false (VTK decides).
+/// segment, and the cell is not flat. m is tetraFirstHitIfCertain's margin. A non-convex or
+/// degenerate cell, and a segment that misses: false (VTK decides).
+///
+/// Warped faces (f.quadSplit known; a quad's points off its plane by `warp` L, beyond round-off
+/// and up to kMaxFaceWarp): VTK's two triangles of each face lie within warp L of its plane, so
+/// the line meets VTK's surface only within W = warp / c of the planes' crossings along it (c the
+/// smaller |cos| of the entry and exit crossings; units of L), where every distance the checks
+/// use moves by at most W. The checks are then made with m + 32 W (W <= kMaxFaceWarp, else
+/// false), the miss proof with m + 2 warp, and t is where the line crosses the plane of the
+/// triangle of VTK's split that holds the hit (quadSplitCrossing), not the face's plane.
 ///
 /// face (optional): on true, the face (the topology's numbering, VTK's) that holds the hit, or
 /// -1. It is given only when the line crosses both the entry and the exit face at an angle:
@@ -420,7 +428,7 @@ inline bool tetraCertainHit(const SegmentFrame& f, const Vec3 v[4], double& t, i
 /// miss (optional): set when the cell passes the planarity and convexity checks and the line,
 /// for t in [-1e-9, 1 + 1e-9], stays outside some face plane by m L (the function then returns
 /// false): every point of the segment is then m L from the convex cell and from each of its
-/// faces (VTK's triangles lie within round-off, planeEps L <= m L, of those planes), so none
+/// faces (VTK's triangles lie within round-off, planeEps L <= m L, or the warp of those planes), so none
 /// of VTK's exact (tol 0) face tests can accept a crossing: VTK reports no hit.
 /// convexFirstHitIfCertain's test on the cell's points p (topo's count), their bounds lo, hi and
 /// largest coordinate magnitude vmag; f valid, f.tol == 0 and miss (if given) false on entry.
