@@ -444,6 +444,36 @@ TEST(CellEval, RegularCellsAreDecidedHere) {
   }
 }
 
+// The face Newton's first iterate points to (outsideFace) is the cell's face on that side: for a
+// point half a cell beyond each side of a unit hexahedron, wedge and pyramid (mapped from its
+// pcoords by the cell's own interpolation), faceSeparates proves it outside by the hull margin.
+template <class S>
+void expectFacesSeparate(const std::vector<double>& pts, const std::vector<std::array<double, 3>>& beyond) {
+  for (const auto& pc : beyond) {
+    double w[8], x[3] = {0, 0, 0};
+    S::functions(pc.data(), w);
+    for (int k = 0; k < S::N; ++k)
+      for (int a = 0; a < 3; ++a) x[a] += w[k] * pts[3 * k + a];
+    const int f = S::outsideFace(pc.data());
+    ASSERT_GE(f, 0) << pc[0] << " " << pc[1] << " " << pc[2];
+    EXPECT_TRUE(mtree::cell_eval::faceSeparates(pts.data(), *mtree::cellTopology(S::kType), f, x, S::kHullMargin, 1e-12))
+        << "face " << f << " for pcoords " << pc[0] << " " << pc[1] << " " << pc[2];
+  }
+  const double inside[3] = {0.3, 0.3, 0.3};
+  EXPECT_LT(S::outsideFace(inside), 0);
+}
+
+TEST(CellEval, FirstStepOutsideFaceIsTheCellsFace) {
+  namespace ce = mtree::cell_eval;
+  expectFacesSeparate<ce::Hexahedron>({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1},
+                                      {{-0.5, 0.5, 0.5}, {1.5, 0.5, 0.5}, {0.5, -0.5, 0.5}, {0.5, 1.5, 0.5},
+                                       {0.5, 0.5, -0.5}, {0.5, 0.5, 1.5}});
+  expectFacesSeparate<ce::Wedge>({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 0, 1, 1},
+                                 {{0.2, 0.2, -0.5}, {0.2, 0.2, 1.5}, {0.3, -0.5, 0.5}, {0.8, 0.8, 0.5}, {-0.5, 0.3, 0.5}});
+  expectFacesSeparate<ce::Pyramid>({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0.5, 0.5, 1},
+                                   {{0.5, 0.5, -0.5}, {0.5, -0.5, 0.3}, {1.5, 0.5, 0.3}, {0.5, 1.5, 0.3}, {-0.5, 0.5, 0.3}});
+}
+
 TEST(CellEval, SimdColumnsEqualTheScalarLoop) {
   // newtonColumns (two sums per SSE2 register) against the plain loop, bit for bit, on random
   // points and coefficients of mixed signs and magnitudes.

@@ -55,12 +55,6 @@
 
 namespace mtree {
 
-namespace cell_eval {
-/// How far outside the unit cell (in pcoords) Newton's first iterate must land before the hull
-/// test (faceSeparates) is tried: inside points never pay for it.
-constexpr double kFarOutside = 0.1;
-}  // namespace cell_eval
-
 /// The engine's answer for a point and a cell: VTK's EvaluatePosition returns 1 (kInside) or 0
 /// or -1 (kOutside: the point is not in the cell), or the engine cannot be sure (kAskVtk).
 enum class PointInCell : int { kOutside = 0, kInside = 1, kAskVtk = -1 };
@@ -72,6 +66,9 @@ namespace cell_eval {
 constexpr double kDecisionMargin = 1e-9;
 /// |det| below this fraction of the cell's size cubed: the cell is (nearly) degenerate, left to VTK.
 constexpr double kConditionRatio = 1e-9;
+/// How far outside the unit cell (in pcoords) Newton's first iterate must land before the hull
+/// test (faceSeparates) is tried: inside points never pay for it.
+constexpr double kFarOutside = 0.1;
 
 /// vtkMath::Determinant3x3 of three columns, in VTK's order of operations.
 inline double det3(const double c1[3], const double c2[3], const double c3[3]) {
@@ -196,17 +193,18 @@ struct Hexahedron {
     d[23] = rm * pc[1];
   }
   static PointInCell accept(const double pc[3], double m) { return inCube(pc, kLower, kUpper, m); }
-  // outsideFace: x's margin beyond the hull of the points for VTK to reject it (its pcoords
-  // tolerance and the residual its convergence test leaves, both far smaller), and the face
-  // (VTK's, cyclic) on whose plane pcoords' constraint c (r < 0, r > 1, s < 0, ...) holds.
+  // kHullMargin: x's margin beyond the hull of the points for VTK to reject it (its pcoords
+  // tolerance and the residual its convergence test leaves, both far smaller); outsideFace: the
+  // face (cellTopology's index) on whose plane the pcoords constraint pc violates by more than
+  // kFarOutside holds (r = 0, r = 1, s = 0, ...), or -1.
+  static constexpr uint8_t kType = kHexahedron;
   static constexpr double kHullMargin = 1e-3;
-  static int outsideFace(const double pc[3], const int** face) {
-    static constexpr int kFaces[6][4] = {{0, 4, 7, 3}, {1, 2, 6, 5}, {0, 1, 5, 4}, {3, 7, 6, 2}, {0, 3, 2, 1}, {4, 5, 6, 7}};
+  static int outsideFace(const double pc[3]) {
     for (int a = 0; a < 3; ++a) {
-      if (pc[a] < -kFarOutside) return *face = kFaces[2 * a], 4;
-      if (pc[a] > 1 + kFarOutside) return *face = kFaces[2 * a + 1], 4;
+      if (pc[a] < -kFarOutside) return 2 * a;
+      if (pc[a] > 1 + kFarOutside) return 2 * a + 1;
     }
-    return 0;
+    return -1;
   }
 };
 
@@ -247,16 +245,15 @@ struct Wedge {
     // r + s <= 1.001: VTK adds, then compares; -inf as the lower limit never decides.
     return conjoin(inCube(pc, -0.001, 1.001, m), classify(pc[0] + pc[1], -HUGE_VAL, 1.001, 2 * m));
   }
+  static constexpr uint8_t kType = kWedge;
   static constexpr double kHullMargin = 2e-2;
-  static int outsideFace(const double pc[3], const int** face) {
-    static constexpr int kBottom[3] = {0, 1, 2}, kTop[3] = {3, 4, 5};
-    static constexpr int kS0[4] = {0, 1, 4, 3}, kR0[4] = {0, 3, 5, 2}, kRS1[4] = {1, 2, 5, 4};
-    if (pc[2] < -kFarOutside) return *face = kBottom, 3;
-    if (pc[2] > 1 + kFarOutside) return *face = kTop, 3;
-    if (pc[1] < -kFarOutside) return *face = kS0, 4;
-    if (pc[0] < -kFarOutside) return *face = kR0, 4;
-    if (pc[0] + pc[1] > 1 + kFarOutside) return *face = kRS1, 4;
-    return 0;
+  static int outsideFace(const double pc[3]) {
+    if (pc[2] < -kFarOutside) return 0;                // t = 0: {0, 1, 2}
+    if (pc[2] > 1 + kFarOutside) return 1;             // t = 1: {3, 5, 4}
+    if (pc[1] < -kFarOutside) return 2;                // s = 0: {0, 3, 4, 1}
+    if (pc[0] + pc[1] > 1 + kFarOutside) return 3;     // r + s = 1: {1, 4, 5, 2}
+    if (pc[0] < -kFarOutside) return 4;                // r = 0: {2, 5, 3, 0}
+    return -1;
   }
 };
 
@@ -292,62 +289,50 @@ struct Pyramid {
     d[14] = 1.0;
   }
   static PointInCell accept(const double pc[3], double m) { return inCube(pc, -0.001, 1.001, m); }
+  static constexpr uint8_t kType = kPyramid;
   static constexpr double kHullMargin = 2e-2;
-  static int outsideFace(const double pc[3], const int** face) {
-    static constexpr int kBase[4] = {0, 1, 2, 3};
-    static constexpr int kSides[4][3] = {{0, 3, 4}, {1, 2, 4}, {0, 1, 4}, {2, 3, 4}};  // r = 0, r = 1, s = 0, s = 1
-    if (pc[2] < -kFarOutside) return *face = kBase, 4;
-    for (int a = 0; a < 2; ++a) {
-      if (pc[a] < -kFarOutside) return *face = kSides[2 * a], 3;
-      if (pc[a] > 1 + kFarOutside) return *face = kSides[2 * a + 1], 3;
-    }
-    return 0;  // beyond the apex (t > 1) has no face of its own
+  static int outsideFace(const double pc[3]) {
+    if (pc[2] < -kFarOutside) return 0;     // t = 0: the base
+    if (pc[1] < -kFarOutside) return 1;     // s = 0: {0, 1, 4}
+    if (pc[0] > 1 + kFarOutside) return 2;  // r = 1: {1, 2, 4}
+    if (pc[1] > 1 + kFarOutside) return 3;  // s = 1: {2, 3, 4}
+    if (pc[0] < -kFarOutside) return 4;     // r = 0: {3, 0, 4}
+    return -1;  // beyond the apex (t > 1) has no face of its own
   }
 };
 
-/// Whether x lies beyond the plane of `face` (fn points of pts, cyclic; a quad's normal from its
-/// diagonals) by more than mu plus the face's warp, on the side away from every other point of
-/// the cell: then x is more than mu from the convex hull of the cell's points. False when the
-/// other points are not all clearly on one side (a tangled or flat cell), or for NaN.
+/// Whether x lies beyond the plane of face f of topo (a quad's normal from its diagonals) by more
+/// than mu plus the face's warp, on the side away from every other point of the cell (pts: 3
+/// doubles per point): then x is more than mu from the convex hull of the cell's points. False
+/// when the other points are not all clearly on one side (a tangled or flat cell), or for NaN.
 /// roundoff: the error of a distance here (a few ulp of the coordinates' magnitude).
-inline bool faceSeparates(const double* pts, int n, const int* face, int fn, const double x[3], double mu,
+inline bool faceSeparates(const double* pts, const CellTopology& topo, int f, const double x[3], double mu,
                           double roundoff) {
-  auto P = [pts](int i) { return pts + 3 * i; };
-  auto sub = [](const double* a, const double* b, double o[3]) {
-    o[0] = a[0] - b[0], o[1] = a[1] - b[1], o[2] = a[2] - b[2];
-  };
-  double e1[3], e2[3];
-  if (fn == 4) {
-    sub(P(face[2]), P(face[0]), e1);
-    sub(P(face[3]), P(face[1]), e2);
-  } else {
-    sub(P(face[1]), P(face[0]), e1);
-    sub(P(face[2]), P(face[0]), e2);
-  }
-  const double nrm[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-  const double nn = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+  auto P = [pts](int i) { return Vec3(pts + 3 * i); };
+  const int* face = topo.face[f];
+  const int fn = topo.faceSize[f];
+  const Vec3 o = P(face[0]);
+  Vec3 nrm = fn == 4 ? cross(P(face[2]) - o, P(face[3]) - P(face[1])) : cross(P(face[1]) - o, P(face[2]) - o);
+  const double nn = norm(nrm);
   if (!(nn > 0) || !std::isfinite(nn)) return false;
-  const double* o = P(face[0]);
-  auto dist = [&](const double* q) {  // signed distance from the plane through o
-    return ((q[0] - o[0]) * nrm[0] + (q[1] - o[1]) * nrm[1] + (q[2] - o[2]) * nrm[2]) / nn;
-  };
+  nrm = nrm * (1.0 / nn);
   unsigned onFace = 0;
   double warp = 0;
   for (int j = 0; j < fn; ++j) {
     onFace |= 1u << face[j];
-    warp = std::max(warp, std::fabs(dist(P(face[j]))));
+    warp = std::max(warp, std::fabs(dot(nrm, P(face[j]) - o)));
   }
   // The inner side: every other point's (more than round-off away); the hull then lies within
   // the warp outside the plane.
   double side = 0;
-  for (int k = 0; k < n; ++k) {
+  for (int k = 0; k < topo.numPoints; ++k) {
     if ((onFace >> k) & 1) continue;
-    const double dk = dist(P(k));
+    const double dk = dot(nrm, P(k) - o);
     if (!(std::fabs(dk) > warp + roundoff)) return false;
     if (side == 0) side = dk > 0 ? 1 : -1;
     else if ((dk > 0) != (side > 0)) return false;
   }
-  return -side * dist(x) > mu + warp + roundoff;  // false for NaN
+  return -side * dot(nrm, Vec3(x) - o) > mu + warp + roundoff;  // false for NaN
 }
 
 /// The Newton iteration's columns as VTK sums them: f = sum_i p_i w_i, r/s/t = sum_i p_i d_i
@@ -531,9 +516,9 @@ inline PointInCell newtonWith(const double* pts, const double x[3], double pcoor
       // Far outside after the first step (a candidate whose box, not cell, holds x): a face
       // plane separating x from all the cell's points by the margin settles VTK's "no" without
       // the remaining steps. Points inside the cell never get here.
-      const int* face = nullptr;
-      const int fn = S::outsideFace(pc, &face);
-      if (fn && faceSeparates(pts, N, face, fn, x, S::kHullMargin * std::sqrt(longest2), kml2 / longest2))
+      const int f = S::outsideFace(pc);
+      if (f >= 0 && faceSeparates(pts, *cellTopology(S::kType), f, x, S::kHullMargin * std::sqrt(longest2),
+                                  kml2 / longest2))
         return PointInCell::kOutside;
     }
     bool below[3];
