@@ -543,11 +543,8 @@ void PolygonTypes(vtkDataSet* ds, const I* offsets, vtkIdType nc, std::vector<ui
 
 // How this VTK's vtkQuad::IntersectWithLine splits a quad (segment_filter.h's QuadSplit): with it
 // known, the ray queries decide hexahedra, wedges and pyramids with slightly warped faces
-// without VTK too. Known for 9.1 (tests/cpp/test_segment_filter checks it against VTK).
-constexpr mtree::QuadSplit kVtkQuadSplit =
-  VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) && VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0)
-  ? mtree::QuadSplit::kDiagonal02
-  : mtree::QuadSplit::kUnknown;
+// without VTK too (tests/cpp/test_segment_filter checks it against VTK).
+constexpr mtree::QuadSplit kVtkQuadSplit = mtree::quadSplitOfVtk(VTK_MAJOR_VERSION, VTK_MINOR_VERSION);
 
 // vtkHexahedron, vtkWedge and vtkTetra::IntersectWithLine (VTK 9.1) for a segment whose hit is
 // certain to lie on face `face` (convexFirstHitIfCertain's or tetraCertainHit's face: every other

@@ -22,11 +22,8 @@
 namespace mtest {
 
 /// How the VTK these tests link splits a quad for IntersectWithLine (segment_filter.h's
-/// QuadSplit), as the locator tells its ray tests: the split of 9.1, unknown for other versions.
-constexpr mtree::QuadSplit kVtkQuadSplit =
-    VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) && VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0)
-        ? mtree::QuadSplit::kDiagonal02
-        : mtree::QuadSplit::kUnknown;
+/// QuadSplit), as the locator tells its ray tests.
+constexpr mtree::QuadSplit kVtkQuadSplit = mtree::quadSplitOfVtk(VTK_MAJOR_VERSION, VTK_MINOR_VERSION);
 
 /// The volume cells of an SU2 mesh (NDIME, NELEM lines "type ids... index", NPOIN lines
 /// "x y z [index]"; markers skipped). SU2 element types are VTK's cell type codes.

@@ -42,6 +42,11 @@ namespace mtree {
 ///                by test_segment_filter against the VTK it links).
 enum class QuadSplit : uint8_t { kUnknown = 0, kDiagonal02 = 1 };
 
+/// The split of the VTK with this major and minor version, where known (9.1).
+constexpr QuadSplit quadSplitOfVtk(int major, int minor) {
+  return major == 9 && minor == 1 ? QuadSplit::kDiagonal02 : QuadSplit::kUnknown;
+}
+
 /// The segment p1 -> p2 with its frame, set up once per query.
 struct SegmentFrame {
   Vec3 p1, d;         // the segment is p1 + t d, t in [0, 1]
