@@ -6,7 +6,10 @@ range, in bold where the median meets the target.
     .venv/bin/python bench/locators_summary.py RUN.json [RUN2.json ...] [--locator NAME]
                                                [--previous OLD.json ...]
 
-Columns: FindCell (one-thread CPU time, target >= 5), rays (one-thread CPU time, >= 10), build
+Columns: FindCell (one-thread CPU time, target >= 5), rays (one-thread CPU time, >= 10): the
+paired ratios (findcell_paired_speedup_vs_static, rays_paired_speedup_vs_static: slice by slice,
+back to back with vtkStaticCellLocator) where a run has them, else, for older runs, the quotient
+of the two locators' separate loops (findcell_cpu_speedup_vs_static, rays_cpu_speedup_vs_static); build
 (build_ms: median of 3 builds, each locator alone in a fresh process since bench/locators.py
 measures it so; <= 1), first build (build_first_ms, <= 1), rebuild after the points moved
 (<= 1 is not a target, shown for deforming meshes), memory (<= 1). --previous: runs whose
@@ -20,9 +23,9 @@ import argparse
 import json
 import statistics
 
-COLUMNS = (  # key, target test, header
-    ("findcell_cpu_speedup_vs_static", lambda m: m >= 5, "FindCell ×"),
-    ("rays_cpu_speedup_vs_static", lambda m: m >= 10, "rays ×"),
+COLUMNS = (  # key (or keys, the first a row has), target test, header
+    (("findcell_paired_speedup_vs_static", "findcell_cpu_speedup_vs_static"), lambda m: m >= 5, "FindCell ×"),
+    (("rays_paired_speedup_vs_static", "rays_cpu_speedup_vs_static"), lambda m: m >= 10, "rays ×"),
     ("build_ratio_vs_static", lambda m: m <= 1, "build ×"),
     ("build_first_ratio_vs_static", lambda m: m <= 1, "first build ×"),
     ("rebuild_ratio_vs_static", lambda m: m <= 1, "rebuild ×"),
@@ -37,6 +40,14 @@ def load(paths: list, locator: str) -> dict:
                 if r["locator"] == locator and r.get("backend", "cpu") == "cpu":
                     rows.setdefault(r["grid"], []).append(r)
     return rows
+
+
+def value(row: dict, keys):
+    """The row's value for the first of `keys` (a key or a tuple of keys) it has, else None."""
+    for k in (keys,) if isinstance(keys, str) else keys:
+        if k in row:
+            return row[k]
+    return None
 
 
 def cell(values: list, ok) -> str:
@@ -60,7 +71,7 @@ def main() -> int:
     print("|" + "---|" * len(head))
     for grid, rs in rows.items():
         cols = [grid, str(rs[0]["cells"]), str(rs[0].get("height", ""))]
-        cols += [cell([r[k] for r in rs if k in r], ok) for k, ok, _ in COLUMNS]
+        cols += [cell([v for v in (value(r, k) for r in rs) if v is not None], ok) for k, ok, _ in COLUMNS]
         mem = statistics.median(r["bytes_ratio_vs_static"] for r in rs)
         cols.append(f"**{mem:.2f}**" if mem <= 1 else f"{mem:.2f}")
         shared = [r["build_shared_ratio_vs_static"] for r in rs if "build_shared_ratio_vs_static" in r]
