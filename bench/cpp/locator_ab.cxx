@@ -17,8 +17,8 @@
 //   findcell: POINTS (default 20000) seeded points in the bounds, one thread, thread CPU time;
 //   rays: RAYS (default 20000) seeded segments of a quarter of the diagonal, first hit, one
 //   thread, thread CPU time.
-// Before each timed query loop the locator answers the other half of the queries' mirror set
-// for 2 ms, untimed (the other configuration has just evicted its data from the caches). Each
+// Before each timed query loop the locator answers queries of a second seeded set for 2 ms,
+// untimed (the other configuration has just evicted its data from the caches). Each
 // round gives one ratio B/A per measure; the table shows A's and B's median times and the
 // median ratio with its quartiles. An A against itself gave 0.99-1.02 here. The answers are
 // compared too (FindCell: cells that differ where B's does not contain the point; rays: hits
@@ -26,6 +26,7 @@
 // change them beyond what VTK's tolerances allow.
 //
 // Prints a table; OUT.json (optional) gets one object per measure.
+#include "locator_bench_common.h"
 #include "vtkMatrixTreeLocator.h"
 
 #include "vtkAbstractCellLocator.h"
@@ -54,17 +55,8 @@
 
 namespace
 {
-double Now()
-{
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-double ThreadCpuNow()
-{
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
+using locbench::Now;
+using locbench::ThreadCpuNow;
 
 // A locator from a configuration string (see the header); throws std::invalid_argument.
 vtkSmartPointer<vtkAbstractCellLocator> MakeLocator(const std::string& config)
@@ -161,21 +153,7 @@ int main(int argc, char** argv)
   const int nRays = argc > 5 ? std::atoi(argv[5]) : 20000;
   const int rounds = argc > 6 ? std::max(1, std::atoi(argv[6])) : 20;
   const char* jsonPath = argc > 7 ? argv[7] : nullptr;
-  vtkSmartPointer<vtkDataSet> ds;
-  if (path.size() > 4 && path.compare(path.size() - 4, 4, ".vtp") == 0)
-  {
-    vtkNew<vtkXMLPolyDataReader> r;
-    r->SetFileName(path.c_str());
-    r->Update();
-    ds = r->GetOutput();
-  }
-  else
-  {
-    vtkNew<vtkXMLUnstructuredGridReader> r;
-    r->SetFileName(path.c_str());
-    r->Update();
-    ds = r->GetOutput();
-  }
+  vtkSmartPointer<vtkDataSet> ds = locbench::ReadGrid(path);
   if (!ds || ds->GetNumberOfCells() == 0)
   {
     std::fprintf(stderr, "could not read cells from %s\n", path.c_str());
@@ -202,37 +180,13 @@ int main(int argc, char** argv)
     static_cast<long long>(ds->GetNumberOfCells()), argv[2], Describe(loc[0]).c_str(), argv[3],
     Describe(loc[1]).c_str());
 
-  // The queries: locators_bench's recipe (seeded points in the bounds; segments of a quarter
-  // of the diagonal from seeded points, seeded directions), and a second, mirrored set for the
-  // warm-ups (the same distribution, not the same queries).
+  // The queries: locators_bench's (seed 42), and a second set (seed 4242) for the warm-ups:
+  // the same distribution, not the same queries.
   double b[6];
   ds->GetBounds(b);
-  const double diag = std::sqrt((b[1] - b[0]) * (b[1] - b[0]) + (b[3] - b[2]) * (b[3] - b[2]) +
-    (b[5] - b[4]) * (b[5] - b[4]));
-  auto makeQueries = [&](uint64_t seed, std::vector<double>& pts, std::vector<double>& seg) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> U(0.0, 1.0);
-    pts.resize(3 * static_cast<size_t>(nPts));
-    seg.resize(6 * static_cast<size_t>(nRays));
-    for (int i = 0; i < nPts; ++i)
-      for (int a = 0; a < 3; ++a)
-        pts[3 * i + a] = b[2 * a] + U(rng) * (b[2 * a + 1] - b[2 * a]);
-    for (int i = 0; i < nRays; ++i)
-    {
-      double d[3], n2 = 0;
-      for (int a = 0; a < 3; ++a)
-      {
-        seg[6 * i + a] = b[2 * a] + U(rng) * (b[2 * a + 1] - b[2 * a]);
-        d[a] = U(rng) - 0.5;
-        n2 += d[a] * d[a];
-      }
-      for (int a = 0; a < 3; ++a)
-        seg[6 * i + 3 + a] = seg[6 * i + a] + d[a] / std::sqrt(n2) * 0.25 * diag;
-    }
-  };
   std::vector<double> pts, seg, warmPts, warmSeg;
-  makeQueries(42, pts, seg);
-  makeQueries(4242, warmPts, warmSeg);
+  locbench::SeededQueries(b, nPts, nRays, 42, pts, seg);
+  locbench::SeededQueries(b, nPts, nRays, 4242, warmPts, warmSeg);
 
   vtkNew<vtkGenericCell> gc;
   double pc[3], w[64], x[3];
@@ -267,7 +221,7 @@ int main(int argc, char** argv)
       }
     }
   };
-  // Warm-up: the mirrored queries, cycling, for 2 ms.
+  // Warm-up: the second set of queries, cycling, for 2 ms.
   auto warm = [&](vtkAbstractCellLocator* l, bool rays) {
     const int n = rays ? nRays : nPts;
     if (n <= 0)

@@ -25,6 +25,7 @@
 // one-point FindCell stays on the CPU), with first_call_ms (upload, and kernel compile when
 // PoCL's cache is cold) and its phases, the phases of the last call, and differs_from_cpu (ids that differ from
 // matrix-octree's batch, expected 0; -1 without that row).
+#include "locator_bench_common.h"
 #include "vtkMatrixTreeLocator.h"
 
 #include "vtkCellLocator.h"
@@ -56,19 +57,8 @@
 
 namespace
 {
-double Now()
-{
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-// CPU time of the calling thread: the ray loop runs on one thread, so this leaves out the time
-// it waited for a core on a shared machine.
-double ThreadCpuNow()
-{
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
+using locbench::Now;
+using locbench::ThreadCpuNow;
 
 bool Contains(vtkDataSet* ds, vtkIdType id, const double x[3])
 {
@@ -99,21 +89,7 @@ int main(int argc, char* argv[])
     std::fprintf(stderr, "BACKEND must be cpu, opencl or all, got '%s'\n", backend.c_str());
     return 2;
   }
-  vtkSmartPointer<vtkDataSet> ds;
-  if (path.size() > 4 && path.substr(path.size() - 4) == ".vtp")
-  {
-    vtkNew<vtkXMLPolyDataReader> r;
-    r->SetFileName(path.c_str());
-    r->Update();
-    ds = r->GetOutput();
-  }
-  else
-  {
-    vtkNew<vtkXMLUnstructuredGridReader> r;
-    r->SetFileName(path.c_str());
-    r->Update();
-    ds = r->GetOutput();
-  }
+  vtkSmartPointer<vtkDataSet> ds = locbench::ReadGrid(path);
   if (!ds || ds->GetNumberOfCells() == 0)
   {
     std::fprintf(stderr, "could not read cells from %s\n", path.c_str());
@@ -121,26 +97,8 @@ int main(int argc, char* argv[])
   }
   double b[6];
   ds->GetBounds(b);
-  std::mt19937_64 rng(42);
-  std::uniform_real_distribution<double> U(0.0, 1.0);
-  std::vector<double> pts(3 * static_cast<size_t>(nPts)), seg(6 * static_cast<size_t>(nRays));
-  for (int i = 0; i < nPts; ++i)
-    for (int a = 0; a < 3; ++a)
-      pts[3 * i + a] = b[2 * a] + U(rng) * (b[2 * a + 1] - b[2 * a]);
-  const double diag = std::sqrt((b[1] - b[0]) * (b[1] - b[0]) + (b[3] - b[2]) * (b[3] - b[2]) +
-    (b[5] - b[4]) * (b[5] - b[4]));
-  for (int i = 0; i < nRays; ++i)
-  {
-    double d[3], n2 = 0;
-    for (int a = 0; a < 3; ++a)
-    {
-      seg[6 * i + a] = b[2 * a] + U(rng) * (b[2 * a + 1] - b[2 * a]);
-      d[a] = U(rng) - 0.5;
-      n2 += d[a] * d[a];
-    }
-    for (int a = 0; a < 3; ++a)
-      seg[6 * i + 3 + a] = seg[6 * i + a] + d[a] / std::sqrt(n2) * 0.25 * diag;
-  }
+  std::vector<double> pts, seg;
+  locbench::SeededQueries(b, nPts, nRays, 42, pts, seg);
 
   struct Entry
   {
