@@ -33,21 +33,13 @@
 #include "vtkDataSet.h"
 #include "vtkGenericCell.h"
 #include "vtkNew.h"
-#include "vtkPolyData.h"
 #include "vtkSmartPointer.h"
 #include "vtkStaticCellLocator.h"
-#include "vtkUnstructuredGrid.h"
-#include "vtkXMLPolyDataReader.h"
-#include "vtkXMLUnstructuredGridReader.h"
-
-#include <time.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <random>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -131,14 +123,6 @@ struct Measure
   std::vector<double> a, b; // per round: seconds (build) or seconds per query
 };
 
-double Quantile(std::vector<double> v, double q)
-{
-  std::sort(v.begin(), v.end());
-  const double pos = q * (v.size() - 1);
-  const size_t i = static_cast<size_t>(pos);
-  const double f = pos - i;
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
-}
 } // namespace
 
 int main(int argc, char** argv)
@@ -224,19 +208,12 @@ int main(int argc, char** argv)
   // Warm-up: the second set of queries, cycling, for 2 ms.
   auto warm = [&](vtkAbstractCellLocator* l, bool rays) {
     const int n = rays ? nRays : nPts;
-    if (n <= 0)
-      return;
-    const double t0 = Now();
-    for (int i = 0, k = 0;; ++k)
-    {
+    locbench::WarmUp(2e-3, n, [&](int i) {
       if (rays)
         rayLoop(l, warmSeg.data() + 6 * static_cast<size_t>(i), 1, nullptr, nullptr);
       else
         findLoop(l, warmPts.data() + 3 * static_cast<size_t>(i), 1, nullptr);
-      i = i + 1 < n ? i + 1 : 0;
-      if ((k & 31) == 31 && Now() - t0 >= 2e-3)
-        break;
-    }
+    });
   };
   Measure build{ "build", {}, {} }, find{ "findcell", {}, {} }, rays{ "rays", {}, {} };
   for (int r = 0; r < rounds; ++r)
@@ -299,8 +276,8 @@ int main(int argc, char** argv)
     const bool perQuery = m != &build;
     const double scale = perQuery ? 1e9 : 1e3;
     const char* unit = perQuery ? "ns" : "ms";
-    const double ma = Quantile(m->a, 0.5) * scale, mb = Quantile(m->b, 0.5) * scale;
-    const double q1 = Quantile(ratio, 0.25), q2 = Quantile(ratio, 0.5), q3 = Quantile(ratio, 0.75);
+    const double ma = locbench::Quantile(m->a, 0.5) * scale, mb = locbench::Quantile(m->b, 0.5) * scale;
+    const double q1 = locbench::Quantile(ratio, 0.25), q2 = locbench::Quantile(ratio, 0.5), q3 = locbench::Quantile(ratio, 0.75);
     std::printf("%-9s %11.2f %s %11.2f %s %12.3f %12.3f %12.3f\n", m->name.c_str(), ma, unit, mb, unit, q1, q2, q3);
     char row[512];
     std::snprintf(row, sizeof(row),

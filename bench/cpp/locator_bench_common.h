@@ -12,6 +12,7 @@
 
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -33,6 +34,35 @@ inline double ThreadCpuNow()
   timespec ts;
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+// Calls query(i) for i = 0, 1, ..., n - 1, cycling, until `seconds` of wall time have passed
+// (checked every 32 calls); nothing when n <= 0. The drivers' untimed warm-up before a timed
+// loop: the locator timed before has evicted this one's data from the caches.
+template <class Query>
+void WarmUp(double seconds, int n, Query&& query)
+{
+  if (n <= 0)
+    return;
+  const double t0 = Now();
+  for (int i = 0, k = 0;; ++k)
+  {
+    query(i);
+    i = i + 1 < n ? i + 1 : 0;
+    if ((k & 31) == 31 && Now() - t0 >= seconds)
+      break;
+  }
+}
+
+// The q-quantile of v (0 <= q <= 1, v not empty), interpolated linearly between the sorted
+// values: the median of an even count is the mean of the middle two.
+inline double Quantile(std::vector<double> v, double q)
+{
+  std::sort(v.begin(), v.end());
+  const double pos = q * (v.size() - 1);
+  const size_t i = static_cast<size_t>(pos);
+  const double f = pos - i;
+  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
 }
 
 // A .vtp (vtkPolyData) or any other name as .vtu (vtkUnstructuredGrid); null or cell-less when

@@ -41,17 +41,13 @@
 #include "vtkUnstructuredGrid.h"
 #include "vtkSmartPointer.h"
 #include "vtkStaticCellLocator.h"
-#include "vtkXMLPolyDataReader.h"
-#include "vtkXMLUnstructuredGridReader.h"
 
 #include <omp.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -160,7 +156,6 @@ int main(int argc, char* argv[])
   constexpr int kRepeats = 3; // timed passes of each query loop, best kept
   // Query statistics (a -DMATRIXTREE_QUERY_STATS=ON build) are global counters: each matrix
   // row's share is summed from the counts taken around its own queries.
-  auto ResetStats = [] { vtkMatrixTreeLocator::ResetQueryStatistics(); };
   auto addStats = [&](Result& res) {
     if (!res.matrix || !vtkMatrixTreeLocator::QueryStatisticsEnabled())
       return;
@@ -310,14 +305,14 @@ int main(int argc, char* argv[])
         res.found[i] = ids->GetValue(i);
       return nPts / best;
     };
-    // Best of kRepeats passes over the same points (by wall time, and by CPU time for one
-    // thread): this machine's speed drifts by tens of percent within a run, and one pass per
-    // locator let that drift decide the ratios.
+    // FindCell on nt threads: the best of kRepeats passes over the same points, by wall time
+    // (this machine's speed drifts by tens of percent within a run). The one-thread loop is
+    // timed by "paired" below.
     auto runFind = [&](int nt) {
       double bestWall = 0;
       for (int rep = 0; rep < kRepeats; ++rep)
       {
-        const double t0 = Now(), c0 = ThreadCpuNow();
+        const double t0 = Now();
 #pragma omp parallel num_threads(nt)
         {
           vtkNew<vtkGenericCell> gc;
@@ -326,10 +321,6 @@ int main(int argc, char* argv[])
           for (int i = 0; i < nPts; ++i)
             res.found[i] = loc->FindCell(&pts[3 * i], 0.0, gc, pc, w);
         }
-        // One thread: the loop ran on this thread, so its CPU time is the loop's (robust on a
-        // machine shared with other work).
-        if (nt == 1)
-          res.pps1Cpu = std::max(res.pps1Cpu, nPts / (ThreadCpuNow() - c0));
         bestWall = std::max(bestWall, nPts / (Now() - t0));
       }
       return bestWall;
@@ -410,18 +401,8 @@ int main(int argc, char* argv[])
             continue;
           vtkAbstractCellLocator* loc = locs[li].loc;
           // Warm-up: the next slice's queries (cycling) for at least kWarmSeconds of wall time.
-          if (whi > wlo)
-          {
-            const double w0 = Now();
-            for (int i = wlo, c = 0;; ++c)
-            {
-              query(loc, i, nullptr);
-              i = i + 1 < whi ? i + 1 : wlo;
-              if ((c & 31) == 31 && Now() - w0 >= kWarmSeconds)
-                break;
-            }
-          }
-          ResetStats();
+          locbench::WarmUp(kWarmSeconds, whi - wlo, [&](int i) { query(loc, wlo + i, nullptr); });
+          vtkMatrixTreeLocator::ResetQueryStatistics();
           const double c0 = ThreadCpuNow(), t0 = Now();
           for (int i = lo; i < hi; ++i)
             query(loc, i, &res.found);
@@ -454,11 +435,9 @@ int main(int argc, char* argv[])
       double* q = rays ? res.raysPaired : res.findPaired;
       if (!ratios.empty())
       {
-        std::sort(ratios.begin(), ratios.end());
-        const size_t m = ratios.size();
-        q[0] = ratios[m / 4];
-        q[1] = m % 2 ? ratios[m / 2] : 0.5 * (ratios[m / 2 - 1] + ratios[m / 2]);
-        q[2] = ratios[(3 * m) / 4];
+        q[0] = locbench::Quantile(ratios, 0.25);
+        q[1] = locbench::Quantile(ratios, 0.5);
+        q[2] = locbench::Quantile(ratios, 0.75);
       }
       if (rays)
       {

@@ -532,13 +532,12 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
   // +inf on the axes the ray does not move along, so every axis has an exit plane.
   double never[3];
   for (int a = 0; a < 3; ++a) never[a] = moves[a] ? 0.0 : std::numeric_limits<double>::infinity();
-  // The exit plane of the node with integer coordinates c and extent cs: the nearest of the three
-  // far faces (ties: the lower axis), or -1 if the ray interval ends first (tExit = t1). Written
-  // without branches on the comparisons, which a step cannot predict.
-  auto exitOf = [&](const int c[3], const Vec3& cs, double& tExit) -> int {
-    const double tx = ((c[0] + up[0]) * cs[0] - ol[0]) * inv[0] + never[0];
-    const double ty = ((c[1] + up[1]) * cs[1] - ol[1]) * inv[1] + never[1];
-    const double tz = ((c[2] + up[2]) * cs[2] - ol[2]) * inv[2] + never[2];
+  // The far face of the node with integer coordinate c and extent cs[a] on axis a: where the
+  // ray leaves it along that axis (+inf on an axis it does not move along).
+  auto exitPlane = [&](int a, int c, const Vec3& cs) { return ((c + up[a]) * cs[a] - ol[a]) * inv[a] + never[a]; };
+  // The nearest of the three far faces (ties: the lower axis), or -1 if the ray interval ends
+  // first (tExit = t1). Written without branches on the comparisons, which a step cannot predict.
+  auto nearestExit = [&](double tx, double ty, double tz, double& tExit) -> int {
     int ax = ty < tx ? 1 : 0;
     double tm = ty < tx ? ty : tx;
     ax = tz < tm ? 2 : ax;
@@ -546,6 +545,10 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
     const bool ends = !(tm < t1);
     tExit = ends ? t1 : tm;
     return ends ? -1 : ax;
+  };
+  // The exit plane of the node with integer coordinates c and extent cs.
+  auto exitOf = [&](const int c[3], const Vec3& cs, double& tExit) -> int {
+    return nearestExit(exitPlane(0, c[0], cs), exitPlane(1, c[1], cs), exitPlane(2, c[2], cs), tExit);
   };
   const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
   const Vec3 csH = cellSize_[H];
@@ -555,34 +558,29 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
     if (n.level == H) {
       // A run of bottom-level cells (leaves and empty cells under an existing parent): L is the
       // node, the next cell is one integer step along the exit axis, and the exit plane is the
-      // general loop's expression (exitOf's, per axis), so the walk is the same, with less
+      // general loop's (exitPlane, nearestExit), so the walk is the same, with less
       // bookkeeping per step: the coordinates stay in registers (not the array that nodeOf and
       // bottomCell read, written back only when the run ends), the step is branch-free, and
       // bottomCell is inlined (1.3-1.7% of a surface ray, locator_ab-style alternation).
       int Lx = L[0], Ly = L[1], Lz = L[2];
       const int sx = up[0] ? 1 : -1, sy = up[1] ? 1 : -1, sz = up[2] ? 1 : -1;
-      auto exitAlong = [&](int a, int c) { return ((c + up[a]) * csH[a] - ol[a]) * inv[a] + never[a]; };
-      double tx = exitAlong(0, Lx), ty = exitAlong(1, Ly), tz = exitAlong(2, Lz);
+      double tx = exitPlane(0, Lx, csH), ty = exitPlane(1, Ly, csH), tz = exitPlane(2, Lz, csH);
       bool larger = false;  // n became a larger empty node
       for (; step < maxSteps; ++step) {
         if (st) ++st->cells;
-        // exitOf's choice: the nearest far face, ties to the lower axis; -1 past t1.
-        int ax = ty < tx ? 1 : 0;
-        double tm = ty < tx ? ty : tx;
-        ax = tz < tm ? 2 : ax;
-        tm = tz < tm ? tz : tm;
-        const bool ends = !(tm < t1);
-        const double tExit = std::max(ends ? t1 : tm, tEnter);
+        double tExit;
+        const int ax = nearestExit(tx, ty, tz, tExit);
+        tExit = std::max(tExit, tEnter);
         if (n.exists && fn(prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit)) return;
-        if (ends) return;
+        if (ax < 0) return;
         Lx += ax == 0 ? sx : 0;
         Ly += ax == 1 ? sy : 0;
         Lz += ax == 2 ? sz : 0;
         if ((unsigned(Lx) >= unsigned(dimH[0])) | (unsigned(Ly) >= unsigned(dimH[1])) | (unsigned(Lz) >= unsigned(dimH[2])))
           return;
-        tx = exitAlong(0, Lx);
-        ty = exitAlong(1, Ly);
-        tz = exitAlong(2, Lz);
+        tx = exitPlane(0, Lx, csH);
+        ty = exitPlane(1, Ly, csH);
+        tz = exitPlane(2, Lz, csH);
         tEnter = tExit;
         const int Lc[3] = {Lx, Ly, Lz};
         const int cell = bottomCell(Lc, n.range, st);
