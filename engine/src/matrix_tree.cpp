@@ -63,6 +63,8 @@ void MatrixTree::buildWalkCaches(int threads) {
   blockEmpty_.clear();
   blockLevels_ = 0;
   denseLevels_ = 0;
+  stepLevel_.clear();
+  stepBlock_.clear();
   if (empty_) return;
   // Dense bits of the upper levels, from the root down while they stay no larger than the
   // level's block-sparse bytes (levels only grow going down).
@@ -116,6 +118,55 @@ void MatrixTree::buildWalkCaches(int threads) {
     }
   }
   buildBlockEmpty();
+  buildStepTable(threads);
+}
+
+void MatrixTree::buildStepTable(int threads) {
+  if (blockEmpty_.empty() || leafMask_.empty()) return;
+  const int H = height_;
+  const int64_t nb = leaves_.numBlocks();
+  // Offsets are 32-bit, like the leaf level's storage indices.
+  if (H >= kStepLeaf || (uint64_t(nb) + uint64_t(H) + 1) * 512 > uint64_t(MT_NULL)) return;
+  // Worth its 512 bytes per block only where rays cross empty cells of the allocated blocks: a
+  // volume mesh's blocks are nearly all leaves (there the walk is 15-22% of a ray, and the
+  // masks answer a leaf in one probe), a surface's are mostly empty.
+  uint64_t leaves = 0;
+  for (const uint64_t w : leafMask_) leaves += static_cast<uint64_t>(__builtin_popcountll(w));
+  if (2 * leaves > uint64_t(nb) * 512) return;
+  bool uniform = true;
+  for (int l = 0; l <= H; ++l)
+    for (int a = 0; a < 3; ++a) {
+      stepShift_[l][a] = logDims_[H][a] - logDims_[l][a];
+      uniform = uniform && stepShift_[l][a] == H - l;
+    }
+  stepUniform_ = uniform;
+  std::vector<uint8_t> bytes(size_t(nb + H + 1) * 512);
+  bool complete = true;
+#pragma omp parallel for num_threads(resolveThreads(threads)) schedule(static) if (nb > 256) reduction(&& : complete)
+  for (int64_t b = 0; b < nb; ++b) {
+    const uint64_t* w = leafMask_.data() + b * 8;
+    uint8_t* out = bytes.data() + b * 512;
+    for (int z = 0; z < 8; ++z)
+      for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 8; ++x) {
+          const int local = 64 * z + 8 * y + x;
+          if ((w[z] >> (8 * y + x)) & 1u) {
+            out[local] = static_cast<uint8_t>(kStepLeaf | H);
+            continue;
+          }
+          const int level = emptyLevelInBlock(x, y, z, w, 1);
+          complete = complete && level >= 0;  // a block without leaves: not from the builders
+          out[local] = static_cast<uint8_t>(level < 0 ? 0 : level);
+        }
+  }
+  if (!complete) return;
+  for (int l = 0; l <= H; ++l) std::fill_n(bytes.data() + size_t(nb + l) * 512, 512, static_cast<uint8_t>(l));
+  const std::vector<uint32_t>& ptr = leaves_.pointers();
+  std::vector<uint32_t> blocks(ptr.size());
+  for (size_t p = 0; p < ptr.size(); ++p)
+    blocks[p] = static_cast<uint32_t>((ptr[p] != MT_NULL ? uint64_t(ptr[p]) : uint64_t(nb) + blockEmpty_[p]) * 512);
+  stepLevel_.swap(bytes);
+  stepBlock_.swap(blocks);
 }
 
 void MatrixTree::buildBlockEmpty() {

@@ -20,12 +20,16 @@
 // 8x8x8 leaf blocks), a third copy, a byte per leaf-level pointer-matrix cell, gives the level
 // of the largest empty node around each absent block: nodeOf() then classifies any bottom-level
 // cell from one pointer read and its block's mask words, where locate() binary searches the
-// levels, so a ray steps across empty space without a search per step.
+// levels, so a ray steps across empty space without a search per step. On scenes with many
+// empty cells inside the allocated leaf blocks (surfaces), a fourth copy, the step table, holds
+// nodeOf()'s answer itself, one byte per bottom-level cell of every allocated block: the walk
+// then reads one byte per step, whatever the node it steps through (buildStepTable()).
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -137,8 +141,15 @@ class MatrixTree {
   /// word read from a small array that stays in cache. Levels below use the block-sparse bytes.
   int denseLevels() const { return denseLevels_; }
   size_t walkCacheBytes() const {
-    return (leafMask_.size() + levelBits_.size()) * sizeof(uint64_t) + blockEmpty_.size();
+    return (leafMask_.size() + levelBits_.size()) * sizeof(uint64_t) + blockEmpty_.size() + stepLevel_.size() +
+           stepBlock_.size() * sizeof(uint32_t);
   }
+  /// Whether traverseRay() steps by the step table (see buildStepTable()): built with the other
+  /// walk caches where nodeOf() is available and at least half the bottom-level cells of the
+  /// allocated leaf blocks are empty, so that its 512 bytes per block buy steps through empty
+  /// space: surfaces (80-83% of those cells empty on the meshes in ../shared/data), not volume
+  /// meshes (0-21%), whose walk is mostly leaves that the masks answer in one probe.
+  bool hasStepTable() const { return !stepBlock_.empty(); }
   /// Whether nodeOf() is available (the walk caches hold the per-block empty levels).
   bool fastNodeOf() const { return !blockEmpty_.empty(); }
   /// locate(L, 0, H + 1)'s answer (the leaf at bottom-level cell L, or the largest empty node
@@ -245,6 +256,10 @@ class MatrixTree {
   /// true return stops the walk. The walk is robust to rays parallel to planes, rays starting
   /// inside, and rays along node faces: the exit axis advances by an integer step, the other
   /// coordinates are clamped into the current node, so it never skips or revisits a node.
+  /// With the step table (hasStepTable()) and no stats the nodes come from the table, with the
+  /// same arithmetic, so fn sees the same calls with the same arguments either way (test_matrix_tree
+  /// StepTableWalkIsTheTreeWalk); with stats the walk classifies each cell as the paper does
+  /// and counts those node visits.
   template <class LeafFn>
   void traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& fn, TraversalStats* st) const;
 
@@ -281,6 +296,37 @@ class MatrixTree {
   int blockLevels_ = 0;
   /// Fills blockEmpty_ and group_ after the leaf masks (leaves them empty where not applicable).
   void buildBlockEmpty();
+  /// The level of the largest empty node containing the empty bottom-level cell at (x, y, z)
+  /// (0..7) of an allocated block with mask words w: the child on its path of the first
+  /// ancestor, from level H - k0 up to the block, with a leaf under it; -1 if the block has no
+  /// leaf at all.
+  int emptyLevelInBlock(int x, int y, int z, const uint64_t* w, int k0) const {
+    for (int k = k0; k <= blockLevels_; ++k) {
+      const BlockGroup& g = group_[k];
+      const uint64_t bits = g.bits << ((x & g.low[0]) + 8 * (y & g.low[1]));
+      const int z0 = z & g.low[2];
+      uint64_t any = 0;
+      for (int q = 0; q < g.depth; ++q) any |= w[z0 + q];
+      if (any & bits) return height_ - k + 1;
+    }
+    return -1;
+  }
+  // The step table (buildStepTable()): for every allocated leaf block b, 512 bytes at b * 512 (the
+  // offset of its leaf ranges in leaves_.data()), in the block's local order; then one block of
+  // 512 equal bytes per level l <= H, at (numBlocks + l) * 512, for the cells of absent blocks.
+  // A byte is kStepLeaf | H for a leaf, else the level of the largest empty node containing the
+  // cell (H: an empty cell whose parent exists). stepBlock_ has the offset of every leaf
+  // pointer-matrix cell's 512 bytes: its block's, or the block of its blockEmpty_ level.
+  static constexpr uint8_t kStepLeaf = 0x80;
+  std::vector<uint8_t> stepLevel_;
+  std::vector<uint32_t> stepBlock_;
+  // Per level, the bottom-level cells per node along each axis as a shift (logDims[H] -
+  // logDims[l]); stepUniform_: it is H - l on every axis (an octree with a cubic root).
+  std::array<std::array<int, 3>, MT_MAX_LEVELS> stepShift_{};
+  bool stepUniform_ = false;
+  /// Fills the step table after buildBlockEmpty() (leaves it empty where nodeOf() is not
+  /// available or the blocks are mostly leaves).
+  void buildStepTable(int threads);
   /// nodeOf() below an empty bottom-level cell L of an allocated block with mask words w: the
   /// first ancestor, from level H - k0 up, with a leaf under it; its child on L's path.
   NodeRef emptyInBlock(const int L[3], const uint64_t* w, int k0, TraversalStats* st) const;
@@ -417,22 +463,15 @@ inline NodeRef MatrixTree::searchAbove(const int L[3], int hi, TraversalStats* s
 }
 
 inline NodeRef MatrixTree::emptyInBlock(const int L[3], const uint64_t* w, int k0, TraversalStats* st) const {
-  const int x = L[0] & 7, y = L[1] & 7, z = L[2] & 7;
   // One node visit for all the probes: they read the block's mask words, one cache line.
   if (st) ++st->nodeVisits;
-  for (int k = k0; k <= blockLevels_; ++k) {
-    const BlockGroup& g = group_[k];
-    const uint64_t bits = g.bits << ((x & g.low[0]) + 8 * (y & g.low[1]));
-    const int z0 = z & g.low[2];
-    uint64_t any = 0;
-    for (int q = 0; q < g.depth; ++q) any |= w[z0 + q];
-    if (any & bits) {
-      // The ancestor at level H - k holds a leaf, so it exists; its child on L's path does not.
-      NodeRef r;
-      r.level = height_ - k + 1;
-      ancestor(L, r.level, r.c);
-      return r;
-    }
+  const int level = emptyLevelInBlock(L[0] & 7, L[1] & 7, L[2] & 7, w, k0);
+  if (level >= 0) {
+    // The ancestor above `level` holds a leaf, so it exists; its child on L's path does not.
+    NodeRef r;
+    r.level = level;
+    ancestor(L, r.level, r.c);
+    return r;
   }
   // A block without leaves (not built by the builders): its node is absent, search above it.
   return searchAbove(L, height_ - blockLevels_, st);
@@ -489,6 +528,16 @@ MT_ALWAYS_INLINE int MatrixTree::bottomCell(const int L[3], MtLeafRange& r, Trav
 }
 
 // ---------------------------------------------------------------------------------------------
+namespace detail {
+/// The ray walk's t of the plane at integer cell coordinate `edge` (cells of extent cs) for a
+/// ray whose origin is at o from the root's corner, with reciprocal direction inv; `never` is
+/// +inf on an axis the ray does not move along (inv = 0 there), else 0. One expression for both
+/// walks, so they step alike to the bit.
+MT_ALWAYS_INLINE double planeCrossing(int edge, double cs, double o, double inv, double never) {
+  return (edge * cs - o) * inv + never;
+}
+}  // namespace detail
+
 template <class LeafFn>
 void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& fn,
                              TraversalStats* st) const {
@@ -526,15 +575,13 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
     for (int a = 0; a < 3; ++a)
       L[a] = cellIndexNonNegative(p[a] * invLeaf_[a], 0, dim(H, a) - 1);
   }
-  const bool fast = fastNodeOf();
-  NodeRef n = fast ? nodeOf(L, st) : locate(L, 0, H + 1, st);
   double tEnter = t0;
   // +inf on the axes the ray does not move along, so every axis has an exit plane.
   double never[3];
   for (int a = 0; a < 3; ++a) never[a] = moves[a] ? 0.0 : std::numeric_limits<double>::infinity();
   // The far face of the node with integer coordinate c and extent cs[a] on axis a: where the
   // ray leaves it along that axis (+inf on an axis it does not move along).
-  auto exitPlane = [&](int a, int c, const Vec3& cs) { return ((c + up[a]) * cs[a] - ol[a]) * inv[a] + never[a]; };
+  auto exitPlane = [&](int a, int c, const Vec3& cs) { return detail::planeCrossing(c + up[a], cs[a], ol[a], inv[a], never[a]); };
   // The nearest of the three far faces (ties: the lower axis), or -1 if the ray interval ends
   // first (tExit = t1). Written without branches on the comparisons, which a step cannot predict.
   auto nearestExit = [&](double tx, double ty, double tz, double& tExit) -> int {
@@ -553,6 +600,86 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
   const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
   const Vec3 csH = cellSize_[H];
   const int dimH[3] = {dim(H, 0), dim(H, 1), dim(H, 2)};
+  if (!st && hasStepTable()) {
+    // The walk below, with each node read from the step table: the node containing L is its
+    // ancestor at the byte's level, whose bottom-level cells span [lo, hi] per axis. Its exit
+    // planes are the walk's own (((c + 1) << s) csH is (c + 1) cs_l exactly: the cell sizes are
+    // the root's extent times powers of two), and so are the next cell (an integer step on the
+    // exit axis; the others from the exit point, clamped into the node) and the leaf calls. One
+    // byte and one pointer per step, against nodeOf()'s and bottomCell()'s branches on the
+    // block's masks (docs/bench_locators.md, "The step table").
+    const MtSparseDesc& sd = leaves_.desc();
+    const size_t px = size_t(sd.ptrDims[0]), py = size_t(sd.ptrDims[1]);
+    const uint32_t* blocks = stepBlock_.data();
+    const uint8_t* bytes = stepLevel_.data();
+    const MtLeafRange* ranges = leaves_.data().data();
+    const uint32_t* primIds = prims_.data();
+    auto walkTable = [&](auto uniform) {
+      // The walk's state in locals (registers), not in the arrays the lambdas share.
+      int Lx = L[0], Ly = L[1], Lz = L[2];
+      double te = tEnter;
+      const double ox = ol.x, oy = ol.y, oz = ol.z, ix = inv[0], iy = inv[1], iz = inv[2];
+      const double nx = never[0], ny = never[1], nz = never[2], cx = csH.x, cy = csH.y, cz = csH.z;
+      const bool ux = up[0] != 0, uy = up[1] != 0, uz = up[2] != 0;
+      auto entry = [&](int x, int y, int z) {
+        return size_t(blocks[(size_t(z >> 3) * py + size_t(y >> 3)) * px + size_t(x >> 3)]) +
+               ((uint32_t(z & 7) << 6) | (uint32_t(y & 7) << 3) | uint32_t(x & 7));
+      };
+      size_t e = entry(Lx, Ly, Lz);
+      for (int step = 0; step < maxSteps; ++step) {
+        const uint8_t v = bytes[e];
+        const int level = v & ~kStepLeaf;
+        int sx, sy, sz;
+        if constexpr (decltype(uniform)::value) {
+          sx = sy = sz = H - level;
+        } else {
+          sx = stepShift_[level][0];
+          sy = stepShift_[level][1];
+          sz = stepShift_[level][2];
+        }
+        const int lx = (Lx >> sx) << sx, ly = (Ly >> sy) << sy, lz = (Lz >> sz) << sz;
+        const int hx = lx + (1 << sx) - 1, hy = ly + (1 << sy) - 1, hz = lz + (1 << sz) - 1;
+        double tExit;
+        const int ax = nearestExit(detail::planeCrossing(ux ? hx + 1 : lx, cx, ox, ix, nx),
+                                   detail::planeCrossing(uy ? hy + 1 : ly, cy, oy, iy, ny),
+                                   detail::planeCrossing(uz ? hz + 1 : lz, cz, oz, iz, nz), tExit);
+        tExit = std::max(tExit, te);
+        // The next cell first: its table entry and leaf range are then on their way while fn
+        // tests this leaf's primitives (the range's load was the walk's largest stall).
+        const size_t here = e;
+        bool inside = ax >= 0;
+        if (inside) {
+          if (level != H) {
+            Lx = cellIndexNonNegative((ox + d.x * tExit) * invLeaf_.x, lx, hx);
+            Ly = cellIndexNonNegative((oy + d.y * tExit) * invLeaf_.y, ly, hy);
+            Lz = cellIndexNonNegative((oz + d.z * tExit) * invLeaf_.z, lz, hz);
+          }
+          if (ax == 0) Lx = ux ? hx + 1 : lx - 1;
+          if (ax == 1) Ly = uy ? hy + 1 : ly - 1;
+          if (ax == 2) Lz = uz ? hz + 1 : lz - 1;
+          inside = (unsigned(Lx) < unsigned(dimH[0])) & (unsigned(Ly) < unsigned(dimH[1])) & (unsigned(Lz) < unsigned(dimH[2]));
+          if (inside) {
+            e = entry(Lx, Ly, Lz);
+            __builtin_prefetch(ranges + e);
+          }
+        }
+        if (v & kStepLeaf) {
+          const MtLeafRange r = ranges[here];
+          if (fn(primIds + r.begin, r.end - r.begin, te, tExit)) return;
+        }
+        if (!inside) return;
+        te = tExit;
+      }
+    };
+    if (stepUniform_) {
+      walkTable(std::true_type{});
+    } else {
+      walkTable(std::false_type{});
+    }
+    return;
+  }
+  const bool fast = fastNodeOf();
+  NodeRef n = fast ? nodeOf(L, st) : locate(L, 0, H + 1, st);
   int step = 0;
   for (; step < maxSteps; ++step) {
     if (n.level == H) {
