@@ -1198,6 +1198,13 @@ void vtkMatrixTreeLocator::FreeSearchStructure()
 {
   delete this->Internals;
   this->Internals = new vtkMatrixTreeLocatorInternals;
+  this->Internals->Tree.enableStepTable(this->RayStepTable);
+}
+
+void vtkMatrixTreeLocator::SetRayStepTable(bool on)
+{
+  this->RayStepTable = on;
+  this->Internals->Tree.enableStepTable(on);
 }
 
 //------------------------------------------------------------------------------
@@ -2362,6 +2369,7 @@ void vtkMatrixTreeLocator::CopySettings(vtkMatrixTreeLocator* other)
   this->SetBackend(other->Backend);
   this->SetOpenCLDevice(other->OpenCLDevice);
   this->SetEngineCellEvaluation(other->EngineCellEvaluation);
+  this->SetRayStepTable(other->RayStepTable);
 }
 
 //------------------------------------------------------------------------------
@@ -2388,6 +2396,7 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LastNumberOfUnconfirmedCells: " << this->LastNumberOfUnconfirmedCells << "\n";
   os << indent << "LastFindCellsPhases: " << this->Internals->FindPhases << "\n";
   os << indent << "EngineCellEvaluation: " << (this->EngineCellEvaluation ? "On" : "Off") << "\n";
+  os << indent << "RayStepTable: " << (this->RayStepTable ? "On" : "Off") << "\n";
   os << indent << "Built: " << (this->Internals->Valid ? "yes" : "no") << "\n";
   if (this->Internals->Valid)
   {

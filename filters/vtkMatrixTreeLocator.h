@@ -281,6 +281,20 @@ public:
   vtkBooleanMacro(EngineCellEvaluation, bool);
   ///@}
 
+  ///@{
+  /**
+   * Whether the ray queries (IntersectWithLine, FindCellsAlongLine) walk the tree by its step
+   * table where the tree has one (MatrixTree::hasStepTable(): surfaces, whose leaf blocks are
+   * mostly empty cells): one byte per step for the node the ray is in, instead of classifying
+   * the cell from the occupancy masks. The same nodes and the same answers either way; on
+   * (default) is faster (docs/bench_locators.md, "The step table"). Off is for comparing the
+   * two walks. A query setting: it does not mark the locator modified.
+   */
+  void SetRayStepTable(bool on);
+  vtkGetMacro(RayStepTable, bool);
+  vtkBooleanMacro(RayStepTable, bool);
+  ///@}
+
   // ---- vtkLocator ----
   /** Builds the tree if the data set or a setting changed since the last build. */
   void BuildLocator() override;
@@ -458,6 +472,7 @@ protected:
   vtkIdType LastNumberOfHostResumes = 0;
   vtkIdType LastNumberOfUnconfirmedCells = 0;
   bool EngineCellEvaluation = true;
+  bool RayStepTable = true;
   vtkMatrixTreeLocatorInternals* Internals;
 
 private:

@@ -5,7 +5,8 @@
 // A and B: "static" (vtkStaticCellLocator with VTK's defaults) or vtkMatrixTreeLocator settings,
 // comma-separated, applied in order to a default locator ("default" or "" for none):
 //   octree | kdtree, height=H, leaf_scale=S, max_candidates=C, exact=0|1, full_axes=0|1,
-//   block=B, sort=radix|counting, cells=auto|in_place|copied, engine_eval=0|1, threads=T
+//   block=B, sort=radix|counting, cells=auto|in_place|copied, engine_eval=0|1, step_table=0|1,
+//   threads=T
 // e.g. `locator_ab lucy.vtp default leaf_scale=6`.
 //
 // Why: on this kind of shared machine a locator's speed drifts by tens of percent within a
@@ -94,6 +95,8 @@ vtkSmartPointer<vtkAbstractCellLocator> MakeLocator(const std::string& config)
       loc->SetNumberOfThreads(static_cast<int>(number()));
     else if (key == "engine_eval")
       loc->SetEngineCellEvaluation(number() != 0);
+    else if (key == "step_table")
+      loc->SetRayStepTable(number() != 0);
     else if (key == "sort" && (val == "radix" || val == "counting"))
       loc->SetBuildSort(val == "radix" ? vtkMatrixTreeLocator::RADIX : vtkMatrixTreeLocator::COUNTING);
     else if (key == "cells" && (val == "auto" || val == "in_place" || val == "copied"))

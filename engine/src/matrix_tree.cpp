@@ -1,5 +1,7 @@
 #include "mtree/matrix_tree.h"
 
+#include <cstring>
+
 namespace mtree {
 
 const char* treeKindName(TreeKind k) { return k == TreeKind::Octree ? "octree" : "kdtree"; }
@@ -121,6 +123,16 @@ void MatrixTree::buildWalkCaches(int threads) {
   buildStepTable(threads);
 }
 
+namespace {
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the step table writes byte i of a word as cell i");
+// The low 8 bits of m as 8 bytes of 0 or 1 (byte i = bit i), little-endian: m copied into every
+// byte, byte i keeps bit i, and adding 0x7F moves any set bit to the byte's top bit.
+inline uint64_t spreadBits(uint64_t m) {
+  const uint64_t x = (m & 0xFF) * 0x0101010101010101ull & 0x8040201008040201ull;
+  return ((x + 0x7F7F7F7F7F7F7F7Full) >> 7) & 0x0101010101010101ull;
+}
+}  // namespace
+
 void MatrixTree::buildStepTable(int threads) {
   if (blockEmpty_.empty() || leafMask_.empty()) return;
   const int H = height_;
@@ -140,24 +152,57 @@ void MatrixTree::buildStepTable(int threads) {
       uniform = uniform && stepShift_[l][a] == H - l;
     }
   stepUniform_ = uniform;
+  // Per block, nested fills of the leaf bits: fill[k] has a cell's bit set when its ancestor at
+  // level H - k holds a leaf (k = 1 .. blockLevels_, each a union of aligned groups of cells:
+  // the children's footprints merged along the axes split between the two levels). An empty
+  // cell's node is the child of its first such ancestor: level H - k + 1 for the least k, i.e.
+  // H minus the number of fills that miss it (they are nested). Eight cells at a time in bytes.
+  const int K = blockLevels_;
+  constexpr uint64_t kOnes = 0x0101010101010101ull;
+  // Aligned pairs of runs of 2^j cells: the lower runs' bits of a mask word along x (j < 3,
+  // within a row of 8) and along y (rows of 8 bits).
+  static constexpr uint64_t kLowX[3] = {0x5555555555555555ull, 0x3333333333333333ull, 0x0F0F0F0F0F0F0F0Full};
+  static constexpr uint64_t kLowY[3] = {0x00FF00FF00FF00FFull, 0x0000FFFF0000FFFFull, 0x00000000FFFFFFFFull};
   std::vector<uint8_t> bytes(size_t(nb + H + 1) * 512);
   bool complete = true;
 #pragma omp parallel for num_threads(resolveThreads(threads)) schedule(static) if (nb > 256) reduction(&& : complete)
   for (int64_t b = 0; b < nb; ++b) {
     const uint64_t* w = leafMask_.data() + b * 8;
-    uint8_t* out = bytes.data() + b * 512;
-    for (int z = 0; z < 8; ++z)
-      for (int y = 0; y < 8; ++y)
-        for (int x = 0; x < 8; ++x) {
-          const int local = 64 * z + 8 * y + x;
-          if ((w[z] >> (8 * y + x)) & 1u) {
-            out[local] = static_cast<uint8_t>(kStepLeaf | H);
-            continue;
+    uint64_t fill[8], missed[64];  // missed: per 8 cells, the count of fills that miss each (bytes)
+    for (int z = 0; z < 8; ++z) fill[z] = w[z];
+    for (int q = 0; q < 64; ++q) missed[q] = 0;
+    for (int k = 1; k <= K; ++k) {
+      const int lower = H - k + 1;  // the fills grow from level `lower`'s footprints to its parent's
+      for (int a = 0; a < 3; ++a) {
+        const int j = stepShift_[lower][a];
+        if (stepShift_[lower - 1][a] == j) continue;  // not split between the two levels
+        for (int z = 0; z < 8; ++z) {
+          if (a == 0) {
+            const uint64_t v = fill[z];
+            fill[z] = v | ((v & kLowX[j]) << (1 << j)) | ((v >> (1 << j)) & kLowX[j]);
+          } else if (a == 1) {
+            const uint64_t v = fill[z];
+            fill[z] = v | ((v & kLowY[j]) << (8 << j)) | ((v >> (8 << j)) & kLowY[j]);
           }
-          const int level = emptyLevelInBlock(x, y, z, w, 1);
-          complete = complete && level >= 0;  // a block without leaves: not from the builders
-          out[local] = static_cast<uint8_t>(level < 0 ? 0 : level);
         }
+        if (a == 2) {
+          uint64_t merged[8];
+          for (int z = 0; z < 8; ++z) merged[z] = fill[z] | fill[z ^ (1 << j)];
+          for (int z = 0; z < 8; ++z) fill[z] = merged[z];
+        }
+      }
+      for (int q = 0; q < 64; ++q) missed[q] += ~spreadBits(fill[q >> 3] >> (8 * (q & 7))) & kOnes;
+    }
+    // The block fill (k = K) covers the block: a cell it misses means a block without leaves.
+    uint64_t all = 0;
+    for (int z = 0; z < 8; ++z) all |= ~fill[z];
+    complete = complete && (K == 0 ? false : all == 0);
+    uint8_t* out = bytes.data() + b * 512;
+    for (int q = 0; q < 64; ++q) {
+      const uint64_t leaf = spreadBits(w[q >> 3] >> (8 * (q & 7)));
+      const uint64_t v = (uint64_t(H) * kOnes - missed[q]) | (leaf << 7);
+      std::memcpy(out + 8 * q, &v, 8);
+    }
   }
   if (!complete) return;
   for (int l = 0; l <= H; ++l) std::fill_n(bytes.data() + size_t(nb + l) * 512, 512, static_cast<uint8_t>(l));

@@ -530,8 +530,8 @@ std::vector<LeafCall> leafCalls(const MatrixTree& t, Vec3 o, Vec3 d, int stopAft
 }
 
 // The step table (one byte per bottom-level cell of the allocated leaf blocks: nodeOf's answer)
-// exists exactly where the rule says (nodeOf available, at most half of those cells leaves), and
-// the walk by it makes the same leaf calls, with the same t intervals to the bit, as the walk
+// exists exactly where the rule says (nodeOf available, at most half of those cells leaves),
+// holds nodeOf's answer for every bottom-level cell, and the walk by it makes the same leaf calls, with the same t intervals to the bit, as the walk
 // that classifies each cell from the masks: 20 000 seeded segments per tree (a fifth parallel
 // to one or two axes, a tenth starting on a bottom-level node plane, some stopping after the
 // first or second leaf), at the automatic height and one and two levels deeper.
@@ -549,6 +549,18 @@ TEST_P(RealMeshTree, StepTableWalkIsTheTreeWalk) {
       EXPECT_TRUE(t.hasStepTable()) << "a surface's octree: most cells of its leaf blocks are empty (height " << H << ")";
     }
     if (!t.hasStepTable()) continue;
+    // Every bottom-level cell: the table's node is nodeOf's (level; leaf or empty).
+    uint64_t cellsDiffer = 0;
+    for (int z = 0; z < t.dim(H, 2); ++z)
+      for (int y = 0; y < t.dim(H, 1); ++y)
+        for (int x = 0; x < t.dim(H, 0); ++x) {
+          const int L[3] = {x, y, z};
+          bool leaf = false;
+          const int level = t.stepTableLevel(L, leaf);
+          const NodeRef n = t.nodeOf(L, nullptr);
+          cellsDiffer += level != n.level || leaf != n.exists;
+        }
+    EXPECT_EQ(cellsDiffer, 0u) << "height " << H;
     mtest::Rng rng(seed(70 + extra));
     const Box root = t.rootBox();
     const Vec3 e = root.extent();

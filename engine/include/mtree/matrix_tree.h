@@ -150,6 +150,18 @@ class MatrixTree {
   /// space: surfaces (80-83% of those cells empty on the meshes in ../shared/data), not volume
   /// meshes (0-21%), whose walk is mostly leaves that the masks answer in one probe.
   bool hasStepTable() const { return !stepBlock_.empty(); }
+  /// Whether traverseRay() may walk by the step table (on by default; kept across builds). Off,
+  /// it walks as a tree without one does: for comparing the two walks on one tree.
+  void enableStepTable(bool on) { stepTableOn_ = on; }
+  bool stepTableEnabled() const { return stepTableOn_; }
+  /// The step table's node for bottom-level cell L (in range; hasStepTable()): its level, and
+  /// in `leaf` whether it is an existing leaf. nodeOf()'s answer (test_matrix_tree checks every
+  /// cell); the walk reads the table inline.
+  int stepTableLevel(const int L[3], bool& leaf) const {
+    const uint8_t v = stepLevel_[stepBlock_[leaves_.pointerIndex(L[0], L[1], L[2])] + leaves_.localIndex(L[0], L[1], L[2])];
+    leaf = (v & kStepLeaf) != 0;
+    return v & ~kStepLeaf;
+  }
   /// Whether nodeOf() is available (the walk caches hold the per-block empty levels).
   bool fastNodeOf() const { return !blockEmpty_.empty(); }
   /// locate(L, 0, H + 1)'s answer (the leaf at bottom-level cell L, or the largest empty node
@@ -256,7 +268,7 @@ class MatrixTree {
   /// true return stops the walk. The walk is robust to rays parallel to planes, rays starting
   /// inside, and rays along node faces: the exit axis advances by an integer step, the other
   /// coordinates are clamped into the current node, so it never skips or revisits a node.
-  /// With the step table (hasStepTable()) and no stats the nodes come from the table, with the
+  /// With the step table (hasStepTable(), enabled) and no stats the nodes come from the table, with the
   /// same arithmetic, so fn sees the same calls with the same arguments either way (test_matrix_tree
   /// StepTableWalkIsTheTreeWalk); with stats the walk classifies each cell as the paper does
   /// and counts those node visits.
@@ -324,6 +336,7 @@ class MatrixTree {
   // logDims[l]); stepUniform_: it is H - l on every axis (an octree with a cubic root).
   std::array<std::array<int, 3>, MT_MAX_LEVELS> stepShift_{};
   bool stepUniform_ = false;
+  bool stepTableOn_ = true;
   /// Fills the step table after buildBlockEmpty() (leaves it empty where nodeOf() is not
   /// available or the blocks are mostly leaves).
   void buildStepTable(int threads);
@@ -600,7 +613,7 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
   const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
   const Vec3 csH = cellSize_[H];
   const int dimH[3] = {dim(H, 0), dim(H, 1), dim(H, 2)};
-  if (!st && hasStepTable()) {
+  if (!st && stepTableOn_ && hasStepTable()) {
     // The walk below, with each node read from the step table: the node containing L is its
     // ancestor at the byte's level, whose bottom-level cells span [lo, hi] per axis. Its exit
     // planes are the walk's own (((c + 1) << s) csH is (c + 1) cs_l exactly: the cell sizes are
