@@ -221,12 +221,25 @@ class MatrixTree {
   /// Same answer by a plain top-down descent, O(H): the reference for tests.
   NodeRef leafFindTopDown(Vec3 p) const;
   /// The leaf holding p if it exists (leafFind's answer then), else exists = false without the
-  /// search for the deepest existing node: one block-sparse access, for point location, which
-  /// only needs the leaf (a point in no leaf is in no primitive).
+  /// search for the deepest existing node: one block-sparse access (with the walk caches, the
+  /// pointer and the block's mask word first), for point location, which only needs the leaf
+  /// (a point in no leaf is in no primitive).
   NodeRef leafHolding(Vec3 p) const {
     NodeRef r;
     int L[3];
-    if (!leafCoords(p, L) || !leafAt(L, r.range)) return r;
+    if (!leafCoords(p, L)) return r;
+    if (!leafMask_.empty()) {
+      // The masks first, as the walk's bottomCell(): a point in an empty cell (most of a
+      // surface's box) is answered from the pointer matrix and the 64-byte mask words, which
+      // stay in cache, without reading the cell's 8-byte leaf range.
+      const uint32_t b = leaves_.pointers()[leaves_.pointerIndex(L[0], L[1], L[2])];
+      if (b == MT_NULL) return r;
+      const uint32_t local = leaves_.localIndex(L[0], L[1], L[2]);
+      if (!((leafMask_[size_t(b) * 8 + (local >> 6)] >> (local & 63)) & 1u)) return r;
+      r.range = leaves_.data()[size_t(b) * 512 + local];
+    } else if (!leafAt(L, r.range)) {
+      return r;
+    }
     r.level = height_;
     for (int a = 0; a < 3; ++a) r.c[a] = L[a];
     r.exists = true;
