@@ -267,11 +267,13 @@ inline bool lineCrossings(const double* l1, const double* dl, int nf, double m, 
   return ie >= 0 && ix >= 0 && te < tx;
 }
 
+/// certainCrossings' second step, for lineCrossings' answer (te, ie; tx, ix): every other face
+/// at least m away at both crossings, the crossing face's distance at p1 and p2 at least m, and
+/// veto false. A face plane parallel to the line is among the "other" faces at both crossings,
+/// so its distance is checked against this m too (lineCrossings may have run with a smaller one).
 template <class Veto>
-inline bool certainCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx,
-                             Veto&& veto, int* faces = nullptr) {
-  int ie, ix;
-  if (!lineCrossings(l1, dl, nf, m, te, tx, ie, ix)) return false;
+inline bool crossingsClear(const double* l1, const double* dl, int nf, double m, double te, double tx, int ie, int ix,
+                           Veto&& veto, int* faces = nullptr) {
   for (const auto& [tc, ic] : {std::pair<double, int>(te, ie), std::pair<double, int>(tx, ix)}) {
     for (int j = 0; j < nf; ++j)
       if (j != ic && !(l1[j] + tc * dl[j] >= m)) return false;
@@ -280,6 +282,13 @@ inline bool certainCrossings(const double* l1, const double* dl, int nf, double 
   }
   if (faces) faces[0] = ie, faces[1] = ix;
   return true;
+}
+
+template <class Veto>
+inline bool certainCrossings(const double* l1, const double* dl, int nf, double m, double& te, double& tx,
+                             Veto&& veto, int* faces = nullptr) {
+  int ie, ix;
+  return lineCrossings(l1, dl, nf, m, te, tx, ie, ix) && crossingsClear(l1, dl, nf, m, te, tx, ie, ix, veto, faces);
 }
 
 /// The first hit of a segment whose line enters a convex cell at te and leaves at tx: te if
@@ -604,6 +613,10 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
   // Warped: VTK's triangles of a quad face lie within warp L of its plane, not within round-off.
   // (A cell the memo knows planar has warp 0 here, as it had on the call that set the memo.)
   const bool warped = warp > planeEps;
+  // Where the line enters (te, face ie) and leaves (tx, ix) the cell: found once, with margin m,
+  // before the miss proof only where the warp's margin needs them (1 found, 0 none, -1 not yet).
+  double te = 0, tx = 0;
+  int ie = -1, ix = -1, crossings = -1;
   // The miss proof's and the certain hit's margins (units of L); m for planar faces.
   double mMiss = m, mc = m;
   if (warped) {
@@ -613,10 +626,9 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
     // every other distance the checks below use moves by at most W over that stretch: they are
     // made with m + 32 W (32: the face-clear condition's kSteepCrossing 1/20 of it still exceeds
     // the warp of the faces that must stay clear).
-    double te0, tx0;
-    int ie0, ix0;
-    if (lineCrossings(l1, dl, nf, m, te0, tx0, ie0, ix0)) {
-      const double c = std::min(std::fabs(dl[ie0]), std::fabs(dl[ix0])) * L * f.invLen;
+    crossings = lineCrossings(l1, dl, nf, m, te, tx, ie, ix) ? 1 : 0;
+    if (crossings) {
+      const double c = std::min(std::fabs(dl[ie]), std::fabs(dl[ix])) * L * f.invLen;
       const double W = warp / c;
       mc = W <= kMaxFaceWarp ? m + 32 * W : std::numeric_limits<double>::infinity();
     }
@@ -651,10 +663,11 @@ inline bool convexCertainFromPoints(const SegmentFrame& f, const CellTopology* t
       return false;
     }
   }
-  double te, tx;
+  if (crossings < 0) crossings = lineCrossings(l1, dl, nf, m, te, tx, ie, ix) ? 1 : 0;
   int crossed[2];
-  if (!(mc < std::numeric_limits<double>::infinity()) ||
-      !certainCrossings(l1, dl, nf, mc, te, tx, nearDiagonal, crossed) || !firstCrossingInSegment(te, tx, t))
+  // The crossings' clearance with mc >= m (a parallel face's too: see crossingsClear).
+  if (!(mc < std::numeric_limits<double>::infinity()) || !crossings ||
+      !crossingsClear(l1, dl, nf, mc, te, tx, ie, ix, nearDiagonal, crossed) || !firstCrossingInSegment(te, tx, t))
     return false;
   const int hitFace = t == te ? crossed[0] : crossed[1];
   if (warped && topo->faceSize[hitFace] == 4) {
