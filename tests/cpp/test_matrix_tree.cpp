@@ -503,14 +503,18 @@ TEST_P(RealMeshTree, NodeOfMatchesLocateEverywhere) {
   }
 }
 
-// One traverseRay call's leaf calls, exactly: where the leaf's ids start, how many, and the
-// segment's t interval in it.
+// One traverseRay call's leaf calls, exactly: where the leaf's ids start, how many, the
+// segment's t interval in it, and the leaf's bottom-level coordinates (the five-argument call),
+// with whether those coordinates hold exactly that leaf.
 struct LeafCall {
   const uint32_t* ids;
   uint32_t count;
   double tEnter, tExit;
+  int L[3];
+  bool coordsHoldIt;
   bool operator==(const LeafCall& o) const {
-    return ids == o.ids && count == o.count && tEnter == o.tEnter && tExit == o.tExit;
+    return ids == o.ids && count == o.count && tEnter == o.tEnter && tExit == o.tExit && L[0] == o.L[0] &&
+           L[1] == o.L[1] && L[2] == o.L[2] && coordsHoldIt == o.coordsHoldIt;
   }
 };
 
@@ -521,8 +525,10 @@ std::vector<LeafCall> leafCalls(const MatrixTree& t, Vec3 o, Vec3 d, int stopAft
   mtree::TraversalStats st;
   t.traverseRay(
       o, d, 0.0, 1.0,
-      [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit) {
-        calls.push_back({ids, count, tEnter, tExit});
+      [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit, const int* L) {
+        MtLeafRange r;
+        const bool holds = t.leafAt(L, r) && t.primitiveIndices().data() + r.begin == ids && r.end - r.begin == count;
+        calls.push_back({ids, count, tEnter, tExit, {L[0], L[1], L[2]}, holds});
         return stopAfter > 0 && static_cast<int>(calls.size()) >= stopAfter;
       },
       stats ? &st : nullptr);
@@ -531,10 +537,12 @@ std::vector<LeafCall> leafCalls(const MatrixTree& t, Vec3 o, Vec3 d, int stopAft
 
 // The step table (one byte per bottom-level cell of the allocated leaf blocks: nodeOf's answer)
 // exists exactly where the rule says (nodeOf available, at most half of those cells leaves),
-// holds nodeOf's answer for every bottom-level cell, and the walk by it makes the same leaf calls, with the same t intervals to the bit, as the walk
-// that classifies each cell from the masks: 20 000 seeded segments per tree (a fifth parallel
-// to one or two axes, a tenth starting on a bottom-level node plane, some stopping after the
-// first or second leaf), at the automatic height and one and two levels deeper.
+// holds nodeOf's answer for every bottom-level cell, and the walk by it makes the same leaf
+// calls, with the same t intervals to the bit, as the walk that classifies each cell from the
+// masks; the coordinates a five-argument callback receives hold the leaf it is called for. 20 000
+// seeded segments per tree (a fifth parallel to one or two axes, a tenth starting on a
+// bottom-level node plane, some stopping after the first or second leaf), at the automatic
+// height and one and two levels deeper.
 TEST_P(RealMeshTree, StepTableWalkIsTheTreeWalk) {
   for (int extra : {0, 1, 2}) {
     const MatrixTree t = extra == 0 ? MatrixTree(tree_)
@@ -564,7 +572,7 @@ TEST_P(RealMeshTree, StepTableWalkIsTheTreeWalk) {
     mtest::Rng rng(seed(70 + extra));
     const Box root = t.rootBox();
     const Vec3 e = root.extent();
-    uint64_t differ = 0, calls = 0;
+    uint64_t differ = 0, calls = 0, coordsWrong = 0;
     for (int i = 0; i < 20000; ++i) {
       Vec3 o, d;
       for (int a = 0; a < 3; ++a) {
@@ -584,6 +592,7 @@ TEST_P(RealMeshTree, StepTableWalkIsTheTreeWalk) {
       const std::vector<LeafCall> byTable = leafCalls(t, o, d, stopAfter, false);
       const std::vector<LeafCall> byMasks = leafCalls(t, o, d, stopAfter, true);
       calls += byMasks.size();
+      for (const LeafCall& c : byMasks) coordsWrong += !c.coordsHoldIt;
       if (byTable != byMasks) {
         if (differ < 3)
           ADD_FAILURE() << "height " << H << " ray " << i << ": " << byTable.size() << " leaf calls by the table, "
@@ -592,6 +601,7 @@ TEST_P(RealMeshTree, StepTableWalkIsTheTreeWalk) {
       }
     }
     EXPECT_EQ(differ, 0u) << "height " << H;
+    EXPECT_EQ(coordsWrong, 0u) << "height " << H << ": the leaf's coordinates handed to fn must hold it";
     EXPECT_GT(calls, 10000u) << "the segments must cross leaves";
   }
 }

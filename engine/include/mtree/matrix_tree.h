@@ -277,10 +277,12 @@ class MatrixTree {
 
   /// Walks the ray o + t d, t in [tmin, tmax], front to back through the leaves and empty nodes
   /// it crosses, stepping from node to neighbour (no stack, no restart). For every existing leaf
-  /// calls fn(const uint32_t* prims, uint32_t count, double tEnter, double tExit) -> bool; a
-  /// true return stops the walk. The walk is robust to rays parallel to planes, rays starting
-  /// inside, and rays along node faces: the exit axis advances by an integer step, the other
-  /// coordinates are clamped into the current node, so it never skips or revisits a node.
+  /// calls fn(const uint32_t* prims, uint32_t count, double tEnter, double tExit) -> bool, or,
+  /// where fn takes a fifth argument, fn(..., const int* L) with the leaf's bottom-level
+  /// coordinates; a true return stops the walk. The walk is robust to rays parallel to planes,
+  /// rays starting inside, and rays along node faces: the exit axis advances by an integer step,
+  /// the other coordinates are clamped into the current node, so it never skips or revisits a
+  /// node.
   /// With the step table (hasStepTable(), enabled) and no stats the nodes come from the table, with the
   /// same arithmetic, so fn sees the same calls with the same arguments either way (test_matrix_tree
   /// StepTableWalkIsTheTreeWalk); with stats the walk classifies each cell as the paper does
@@ -562,6 +564,18 @@ namespace detail {
 MT_ALWAYS_INLINE double planeCrossing(int edge, double cs, double o, double inv, double never) {
   return (edge * cs - o) * inv + never;
 }
+/// traverseRay's leaf call: fn(ids, count, tEnter, tExit), or fn(ids, count, tEnter, tExit, L)
+/// where fn takes the leaf's bottom-level coordinates too.
+template <class LeafFn>
+MT_ALWAYS_INLINE bool callLeaf(LeafFn& fn, const uint32_t* ids, uint32_t count, double tEnter, double tExit,
+                               int x, int y, int z) {
+  if constexpr (std::is_invocable_v<LeafFn&, const uint32_t*, uint32_t, double, double, const int*>) {
+    const int L[3] = {x, y, z};
+    return fn(ids, count, tEnter, tExit, static_cast<const int*>(L));
+  } else {
+    return fn(ids, count, tEnter, tExit);
+  }
+}
 }  // namespace detail
 
 template <class LeafFn>
@@ -673,6 +687,7 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
         // The next cell first: its table entry and leaf range are then on their way while fn
         // tests this leaf's primitives (the range's load was the walk's largest stall).
         const size_t here = e;
+        const int hereX = Lx, hereY = Ly, hereZ = Lz;
         bool inside = ax >= 0;
         if (inside) {
           if (level != H) {
@@ -691,7 +706,7 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
         }
         if (v & kStepLeaf) {
           const MtLeafRange r = ranges[here];
-          if (fn(primIds + r.begin, r.end - r.begin, te, tExit)) return;
+          if (detail::callLeaf(fn, primIds + r.begin, r.end - r.begin, te, tExit, hereX, hereY, hereZ)) return;
         }
         if (!inside) return;
         te = tExit;
@@ -724,7 +739,9 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
         double tExit;
         const int ax = nearestExit(tx, ty, tz, tExit);
         tExit = std::max(tExit, tEnter);
-        if (n.exists && fn(prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit)) return;
+        if (n.exists &&
+            detail::callLeaf(fn, prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit, Lx, Ly, Lz))
+          return;
         if (ax < 0) return;
         Lx += ax == 0 ? sx : 0;
         Ly += ax == 1 ? sy : 0;
@@ -757,7 +774,10 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
     const int exitAxis = exitOf(n.c, cellSize_[n.level], tExit);
     tExit = std::max(tExit, tEnter);
     if (n.exists) {
-      if (fn(prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit)) return;
+      // An existing node is a leaf (level H): n.c are its bottom-level coordinates.
+      if (detail::callLeaf(fn, prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit, n.c[0],
+                           n.c[1], n.c[2]))
+        return;
     }
     if (exitAxis < 0) return;  // the ray interval ends inside this node
     // Bottom-level cell just across the exit face: exact integer step on the exit axis, the
