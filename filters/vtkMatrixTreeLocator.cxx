@@ -787,6 +787,13 @@ public:
     for (uint32_t k0 = 0; k0 < count; k0 += kChunk)
     {
       const int ng = boxTest.gather(boxes, k0, std::min(count, k0 + kChunk), idx);
+      // The first survivors' point ids are asked for now, while their entry t are computed and
+      // sorted: the first test waits on them, then on the points (in-process A/B, old/new:
+      // 1.005-1.028 on the surfaces' rays, 0.996-1.051 on the volume grids').
+      for (int g = 0, e = std::min(ng, 8); g < e; ++g)
+      {
+        this->In.Cells.prefetchPointIds(ids[idx[g]]);
+      }
       for (int g = 0; g < ng; ++g)
       {
       const uint32_t k = idx[g];
