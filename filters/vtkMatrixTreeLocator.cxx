@@ -665,12 +665,11 @@ public:
     }
   }
 
-  // The candidates of the leaf whose references start at `ids` that the segment may hit in
-  // this leaf at t <= bound, in `out` sorted by entry t; -1 if the leaf was not identified
-  // (then every candidate must be tested). `leaf`: its bottom-level coordinates, as the walk
-  // gives them; null: found from the segment's midpoint in the leaf and checked against ids.
-  int candidates(const uint32_t* ids, uint32_t count, double tEnter, double tExit, double bound,
-    Candidate* out, const int* leaf = nullptr) const
+  // The candidates of the leaf at bottom-level coordinates `leaf` (as the walk gives them),
+  // whose references start at `ids`, that the segment may hit in this leaf at t <= bound, in
+  // `out` sorted by entry t; -1 where the filter cannot decide (then every candidate must be
+  // tested).
+  int candidates(const uint32_t* ids, uint32_t count, const int leaf[3], double bound, Candidate* out) const
   {
     if (!this->Enabled || count == 0 || ids < this->Prims || ids + count > this->Prims + this->NumPrims)
     {
@@ -678,27 +677,7 @@ public:
     }
     const mtree::MatrixTree& tree = this->In.Tree;
     const uint32_t begin = static_cast<uint32_t>(ids - this->Prims);
-    int L[3];
-    if (leaf)
-    {
-      std::copy(leaf, leaf + 3, L);
-    }
-    else
-    {
-      const mtree::Box& root = tree.rootBox();
-      const mtree::Vec3 il = tree.inverseLeafSize();
-      const double tm = 0.5 * (tEnter + tExit);
-      const mtree::Vec3 p = this->O + this->D * tm;
-      for (int a = 0; a < 3; ++a)
-      {
-        L[a] = mtree::cellIndexNonNegative((p[a] - root.lo[a]) * il[a], 0, tree.dim(this->H, a) - 1);
-      }
-      MtLeafRange r;
-      if (!tree.leafAt(L, r) || r.begin != begin || r.end - r.begin != count)
-      {
-        return -1;
-      }
-    }
+    const int L[3] = { leaf[0], leaf[1], leaf[2] };
     const mtree::Box lb = tree.nodeBox(this->H, L);
     constexpr double eps = std::numeric_limits<double>::epsilon();
     const double mag = std::max({ this->Mag, std::fabs(lb.lo.x), std::fabs(lb.lo.y), std::fabs(lb.lo.z),
@@ -1378,7 +1357,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
     mtree::TraversalStats walk;
     in.Tree.traverseRay(
       o, d, 0.0, 1.0,
-      [&](const uint32_t* ids, uint32_t count, double tEnter, double tExit, const int* leaf) {
+      [&](const uint32_t* ids, uint32_t count, double, double tExit, const int* leaf) {
         // The leaf's ids (read for the survivors only after its boxes are tested) and its boxes
         // are asked for as soon as the leaf is reached: their cache misses overlap each other
         // and the box test's set-up.
@@ -1398,7 +1377,7 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
           cand = heapBuf.data();
         }
         const int nc =
-          leafFilter.candidates(ids, count, tEnter, tExit, std::min({ best, deferredT, 1.0 }), cand, leaf);
+          leafFilter.candidates(ids, count, leaf, std::min({ best, deferredT, 1.0 }), cand);
         CountQuery(kRayCandidates, nc < 0 ? count : static_cast<uint64_t>(nc));
         if (nc < 0)
         {

@@ -176,19 +176,18 @@ void MatrixTree::buildStepTable(int threads) {
       for (int a = 0; a < 3; ++a) {
         const int j = stepShift_[lower][a];
         if (stepShift_[lower - 1][a] == j) continue;  // not split between the two levels
-        for (int z = 0; z < 8; ++z) {
-          if (a == 0) {
-            const uint64_t v = fill[z];
-            fill[z] = v | ((v & kLowX[j]) << (1 << j)) | ((v >> (1 << j)) & kLowX[j]);
-          } else if (a == 1) {
-            const uint64_t v = fill[z];
-            fill[z] = v | ((v & kLowY[j]) << (8 << j)) | ((v >> (8 << j)) & kLowY[j]);
-          }
-        }
-        if (a == 2) {
+        if (a == 2) {  // z: the pair's words
           uint64_t merged[8];
           for (int z = 0; z < 8; ++z) merged[z] = fill[z] | fill[z ^ (1 << j)];
           for (int z = 0; z < 8; ++z) fill[z] = merged[z];
+          continue;
+        }
+        // x or y: within each word, runs of 2^j bits (x) or of 2^j rows of 8 (y).
+        const int shift = a == 0 ? 1 << j : 8 << j;
+        const uint64_t low = a == 0 ? kLowX[j] : kLowY[j];
+        for (int z = 0; z < 8; ++z) {
+          const uint64_t v = fill[z];
+          fill[z] = v | ((v & low) << shift) | ((v >> shift) & low);
         }
       }
       for (int q = 0; q < 64; ++q) missed[q] += ~spreadBits(fill[q >> 3] >> (8 * (q & 7))) & kOnes;
@@ -196,7 +195,7 @@ void MatrixTree::buildStepTable(int threads) {
     // The block fill (k = K) covers the block: a cell it misses means a block without leaves.
     uint64_t all = 0;
     for (int z = 0; z < 8; ++z) all |= ~fill[z];
-    complete = complete && (K == 0 ? false : all == 0);
+    complete = complete && all == 0;
     uint8_t* out = bytes.data() + b * 512;
     for (int q = 0; q < 64; ++q) {
       const uint64_t leaf = spreadBits(w[q >> 3] >> (8 * (q & 7)));

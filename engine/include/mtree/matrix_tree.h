@@ -153,7 +153,6 @@ class MatrixTree {
   /// Whether traverseRay() may walk by the step table (on by default; kept across builds). Off,
   /// it walks as a tree without one does: for comparing the two walks on one tree.
   void enableStepTable(bool on) { stepTableOn_ = on; }
-  bool stepTableEnabled() const { return stepTableOn_; }
   /// The step table's node for bottom-level cell L (in range; hasStepTable()): its level, and
   /// in `leaf` whether it is an existing leaf. nodeOf()'s answer (test_matrix_tree checks every
   /// cell); the walk reads the table inline.
@@ -228,18 +227,16 @@ class MatrixTree {
     NodeRef r;
     int L[3];
     if (!leafCoords(p, L)) return r;
-    if (!leafMask_.empty()) {
-      // The masks first, as the walk's bottomCell(): a point in an empty cell (most of a
-      // surface's box) is answered from the pointer matrix and the 64-byte mask words, which
-      // stay in cache, without reading the cell's 8-byte leaf range.
-      const uint32_t b = leaves_.pointers()[leaves_.pointerIndex(L[0], L[1], L[2])];
-      if (b == MT_NULL) return r;
-      const uint32_t local = leaves_.localIndex(L[0], L[1], L[2]);
-      if (!((leafMask_[size_t(b) * 8 + (local >> 6)] >> (local & 63)) & 1u)) return r;
-      r.range = leaves_.data()[size_t(b) * 512 + local];
-    } else if (!leafAt(L, r.range)) {
-      return r;
+    // The masks first, as the walk's bottomCell(): a point in an empty cell (most of a
+    // surface's box) is answered from the pointer matrix and the 64-byte mask words, which stay
+    // in cache, without reading the cell's 8-byte leaf range.
+    bool leaf;
+    if (leafMask_.empty()) {
+      leaf = leafAt(L, r.range);
+    } else {
+      maskedLeaf(L, r.range, leaf);
     }
+    if (!leaf) return r;
     r.level = height_;
     for (int a = 0; a < 3; ++a) r.c[a] = L[a];
     r.exists = true;
@@ -376,6 +373,19 @@ class MatrixTree {
   int siblingLow_[3] = {~0, ~0, ~0};  // AND-mask clearing the split axes' low coordinate bit
   bool siblingZ_ = false;
 
+  /// The bottom-level cell L (in range) through the occupancy masks (leafMask_ not empty):
+  /// `leaf` whether it is a leaf (then its range in r); returns its block's mask words, null
+  /// where the block is absent.
+  const uint64_t* maskedLeaf(const int L[3], MtLeafRange& r, bool& leaf) const {
+    leaf = false;
+    const uint32_t b = leaves_.pointers()[leaves_.pointerIndex(L[0], L[1], L[2])];
+    if (b == MT_NULL) return nullptr;
+    const uint64_t* w = leafMask_.data() + size_t(b) * 8;
+    const uint32_t local = leaves_.localIndex(L[0], L[1], L[2]);  // 64 z + 8 y + x: word z, bit 8 y + x
+    leaf = (w[local >> 6] >> (local & 63)) & 1u;
+    if (leaf) r = leaves_.data()[size_t(b) * 512 + local];
+    return w;
+  }
   /// The bottom-level cell L (in range) through the occupancy masks: 1 = a leaf (its range in
   /// r), 0 = an empty cell whose parent exists, -1 = the parent is absent too. Two node visits
   /// at most (the cell, its parent), as leafAt + an existence probe would count them.
@@ -540,14 +550,10 @@ MT_ALWAYS_INLINE int MatrixTree::bottomCell(const int L[3], MtLeafRange& r, Trav
     if (st) ++st->nodeVisits;
     return innerExists(H - 1, c) ? 0 : -1;
   }
-  const uint32_t b = leaves_.pointers()[leaves_.pointerIndex(L[0], L[1], L[2])];
-  if (b == MT_NULL) return -1;  // no leaf in this 8x8x8 block, so none under the cell's parent
-  const uint64_t* w = leafMask_.data() + size_t(b) * 8;
-  const uint32_t local = leaves_.localIndex(L[0], L[1], L[2]);  // 64 z + 8 y + x: word z, bit 8 y + x
-  if ((w[local >> 6] >> (local & 63)) & 1u) {
-    r = leaves_.data()[size_t(b) * 512 + local];
-    return 1;
-  }
+  bool leaf;
+  const uint64_t* w = maskedLeaf(L, r, leaf);
+  if (!w) return -1;  // no leaf in this 8x8x8 block, so none under the cell's parent
+  if (leaf) return 1;
   const int x = L[0] & 7, y = L[1] & 7, z = L[2] & 7;
   if (st) ++st->nodeVisits;
   const int zs = z & siblingLow_[2];
