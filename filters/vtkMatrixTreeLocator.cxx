@@ -25,6 +25,7 @@
 #include "mtree/cell_eval.h"
 #include "mtree/cells.h"
 #include "mtree/segment_filter.h"
+#include "mtree/vtk_face_hit.h"
 #include "mtree/opencl.h"
 
 #include <omp.h>
@@ -549,9 +550,12 @@ constexpr mtree::QuadSplit kVtkQuadSplit = mtree::quadSplitOfVtk(VTK_MAJOR_VERSI
 // vtkHexahedron, vtkWedge and vtkTetra::IntersectWithLine (VTK 9.1) for a segment whose hit is
 // certain to lie on face `face` (convexFirstHitIfCertain's or tetraCertainHit's face: every other
 // face of the cell is far from the line, so VTK's loop over the faces finds only this one, or
-// this one first): VTK's own vtkQuad or vtkTriangle IntersectWithLine on that face, its points
+// this one first): VTK's vtkQuad or vtkTriangle IntersectWithLine on that face, its points
 // set as the cell sets them (the quad keeps the point ids vtkQuad's constructor gives it, as the
-// cells' own quads do: they only break ties between equal diagonals), and the face's pcoords
+// cells' own quads do: they only break ties between equal diagonals), recomputed without VTK by
+// mtree::vtk91 (the same bits; test_segment_filter's Vtk91FaceTestIsVtks) and asked of VTK's
+// own cell only where that leaves the answer to VTK (a point at round-off from an edge or the
+// quad's diagonal, a degenerate face, a line in its plane), and the face's pcoords
 // (r, s, and the triangle's third) mapped as the cell maps them in 9.1 (checked against the
 // library by tests/python/test_locator.py::test_ray_hit_values_are_vtks_own):
 //   hexahedron  face 0 (0, r, 0), 1 (1, r, 0), 2 (r, 0, s), 3 (r, 1, s), 4 (r, s, 0), 5 (r, s, 1);
@@ -570,21 +574,49 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
   {
     return false;
   }
-  static thread_local vtkSmartPointer<vtkQuad> quad = vtkSmartPointer<vtkQuad>::New();
-  static thread_local vtkSmartPointer<vtkTriangle> triangle = vtkSmartPointer<vtkTriangle>::New();
   const mtree::CellTopology* topo = mtree::cellTopology(type);
   const int n = topo->faceSize[face];
-  vtkCell* f = n == 4 ? static_cast<vtkCell*>(quad) : static_cast<vtkCell*>(triangle);
   const auto pid = cells.cellPointIds(static_cast<size_t>(id));
+  double q[4][3];
   for (int k = 0; k < n; ++k)
   {
     const mtree::Vec3 p = cells.point(pid[topo->face[face][k]]);
-    f->GetPoints()->SetPoint(k, p.x, p.y, p.z);
+    q[k][0] = p.x, q[k][1] = p.y, q[k][2] = p.z;
   }
   double pc[3];
-  if (!f->IntersectWithLine(p1, p2, tol, t, x, pc, subId))
+  // VTK's face test recomputed (mtree/vtk_face_hit.h: the same bits, without the vtkCell and its
+  // virtual calls); VTK's own where that leaves the answer to it.
+  mtree::vtk91::FaceHit fast = mtree::vtk91::FaceHit::kAskVtk;
+  if (tol == 0.0)
   {
-    return false;
+    const double* const qp[4] = { q[0], q[1], q[2], q[3] };
+    mtree::vtk91::LineHit h;
+    fast = n == 4 ? mtree::vtk91::quadLineHit(qp, p1, p2, h) : mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
+    if (fast == mtree::vtk91::FaceHit::kMiss)
+    {
+      return false;
+    }
+    if (fast == mtree::vtk91::FaceHit::kHit)
+    {
+      t = h.t;
+      std::copy(h.x, h.x + 3, x);
+      std::copy(h.pcoords, h.pcoords + 3, pc);
+      subId = 0;
+    }
+  }
+  if (fast == mtree::vtk91::FaceHit::kAskVtk)
+  {
+    static thread_local vtkSmartPointer<vtkQuad> quad = vtkSmartPointer<vtkQuad>::New();
+    static thread_local vtkSmartPointer<vtkTriangle> triangle = vtkSmartPointer<vtkTriangle>::New();
+    vtkCell* f = n == 4 ? static_cast<vtkCell*>(quad) : static_cast<vtkCell*>(triangle);
+    for (int k = 0; k < n; ++k)
+    {
+      f->GetPoints()->SetPoint(k, q[k]);
+    }
+    if (!f->IntersectWithLine(p1, p2, tol, t, x, pc, subId))
+    {
+      return false;
+    }
   }
   const double r = pc[0], s = pc[1];
   double out[3];

@@ -24,10 +24,12 @@
 #include <vtkPLYReader.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
+#include <vtkQuad.h>
 #include <vtkSmartPointer.h>
 #include <vtkTetra.h>
 #include <vtkTriangle.h>
 #include <vtkUnstructuredGrid.h>
+#include <vtkVersion.h>
 
 #include <array>
 #include <cmath>
@@ -37,6 +39,7 @@
 #include <vector>
 
 #include "mtree/segment_filter.h"
+#include "mtree/vtk_face_hit.h"
 #include "test_util.h"
 #include "vtk_grid_util.h"
 
@@ -612,6 +615,114 @@ TEST(SegmentFilter, TetraCertainFaceIsVtks) {
       }
   EXPECT_GT(faced, certain / 2) << certain;
   EXPECT_GT(certain, 3000);
+}
+
+// mtree::vtk91 (vtk_face_hit.h) recomputes VTK 9.1's vtkTriangle and vtkQuad IntersectWithLine at
+// tol 0: wherever it answers, VTK's own call (a fresh cell, as the locator's CertainFaceHit used)
+// must give the same verdict and, on a hit, the same t, x, pcoords and subId to the bit. Random
+// triangles (some thin, some nearly edge-on to the segment) and quads (planar, warped,
+// axis-aligned squares, long rectangles), at scales 1e-9 ... 1e9 and offsets up to 1e8, with
+// segments through the inside, past the edges and diagonals, and ending short of the plane.
+TEST(SegmentFilter, Vtk91FaceTestIsVtks) {
+  if (!(VTK_MAJOR_VERSION == 9 && VTK_MINOR_VERSION == 1)) GTEST_SKIP() << "the recomputation is VTK 9.1's";
+  std::mt19937_64 rng(97);
+  std::uniform_real_distribution<double> U(-1.0, 1.0), U01(0.0, 1.0);
+  long long hits = 0, misses = 0, asked = 0, total = 0;
+  for (double scale : {1.0, 1e-9, 1e9})
+    for (double off : {0.0, 1e3, -1e8})
+      for (int it = 0; it < 4000; ++it) {
+        // Cells smaller than 1e-9 of their offset sit at the coordinates' round-off, where VTK is
+        // asked about most of them: they are checked, not counted.
+        const bool resolved = off == 0.0 || scale > 1e-9 * std::fabs(off);
+        const bool isQuad = it % 2 == 1;
+        const int n = isQuad ? 4 : 3;
+        double v[4][3];
+        const int shape = (it / 2) % 5;
+        if (isQuad && shape == 0) {  // an axis-aligned square (equal diagonals)
+          const double a = 0.5 + U01(rng);
+          const double sq[4][3] = {{0, 0, 0}, {a, 0, 0}, {a, a, 0}, {0, a, 0}};
+          for (int k = 0; k < 4; ++k)
+            for (int c = 0; c < 3; ++c) v[k][c] = sq[k][(c + it) % 3];
+        } else if (isQuad) {  // a parallelogram, then warped (or not), or a long rectangle
+          double o[3], e1[3], e2[3];
+          for (int c = 0; c < 3; ++c) o[c] = U(rng), e1[c] = U(rng), e2[c] = U(rng);
+          if (shape == 4)
+            for (double& c : e2) c *= 0.01;
+          for (int c = 0; c < 3; ++c) {
+            v[0][c] = o[c];
+            v[1][c] = o[c] + e1[c];
+            v[2][c] = o[c] + e1[c] + e2[c];
+            v[3][c] = o[c] + e2[c];
+          }
+          if (shape == 2 || shape == 3) {
+            const double w = shape == 2 ? 1e-6 : 0.05;
+            for (double& c : v[2]) c += w * U(rng);
+          }
+        } else {
+          for (int k = 0; k < 3; ++k)
+            for (double& c : v[k]) c = U(rng);
+          if (shape == 1)
+            for (int c = 0; c < 3; ++c) v[2][c] = 0.5 * (v[0][c] + v[1][c]) + 1e-3 * U(rng);  // thin
+        }
+        for (int k = 0; k < n; ++k)
+          for (double& c : v[k]) c = c * scale + off;
+        // A target point: inside (random barycentric of the points), beyond an edge, or on a
+        // diagonal (quads); the segment through it from a random start, ending past it or short.
+        double w[4] = {U01(rng), U01(rng), U01(rng), isQuad ? U01(rng) : 0.0};
+        const int pick = it % 7;
+        if (pick == 5) w[it % n] = -0.02 * U01(rng);  // just outside
+        if (pick == 6 && isQuad) w[1] = w[3] = 0.0;  // on the diagonal 0-2
+        double ws = 0;
+        for (int k = 0; k < n; ++k) ws += w[k];
+        double target[3] = {0, 0, 0}, a[3], b[3];
+        for (int c = 0; c < 3; ++c) {
+          for (int k = 0; k < n; ++k) target[c] += v[k][c] * w[k] / ws;
+        }
+        double dir[3];
+        for (int c = 0; c < 3; ++c) dir[c] = U(rng) * scale;
+        if (it % 11 == 0) {  // nearly in the plane: along an edge with a small normal part
+          for (int c = 0; c < 3; ++c) dir[c] = (v[1][c] - v[0][c]) + 1e-4 * U(rng) * scale;
+        }
+        const double reach = (it % 13 == 0) ? 0.8 : 1.7;  // short: the plane lies past p2
+        for (int c = 0; c < 3; ++c) {
+          a[c] = target[c] - dir[c];
+          b[c] = a[c] + reach * dir[c];
+        }
+        vtkSmartPointer<vtkCell> cell;
+        if (isQuad) cell = vtkSmartPointer<vtkQuad>::New();
+        else cell = vtkSmartPointer<vtkTriangle>::New();
+        for (int k = 0; k < n; ++k) cell->GetPoints()->SetPoint(k, v[k]);
+        double t = 0, x[3] = {0, 0, 0}, pc[3] = {0, 0, 0};
+        int sub = -1;
+        const int vtkHit = cell->IntersectWithLine(a, b, 0.0, t, x, pc, sub);
+        mtree::vtk91::LineHit h;
+        const double* const q[4] = {v[0], v[1], v[2], v[3]};
+        const mtree::vtk91::FaceHit ours =
+            isQuad ? mtree::vtk91::quadLineHit(q, a, b, h) : mtree::vtk91::triangleLineHit(v[0], v[1], v[2], a, b, h);
+        total += resolved;
+        if (ours == mtree::vtk91::FaceHit::kAskVtk) {
+          asked += resolved;
+          continue;
+        }
+        if (ours == mtree::vtk91::FaceHit::kMiss) {
+          misses += resolved;
+          ASSERT_EQ(vtkHit, 0) << "it " << it << " scale " << scale << " off " << off;
+          continue;
+        }
+        hits += resolved;
+        ASSERT_EQ(vtkHit, 1) << "it " << it << " scale " << scale << " off " << off;
+        ASSERT_EQ(h.t, t) << it;
+        for (int c = 0; c < 3; ++c) {
+          ASSERT_EQ(h.x[c], x[c]) << it << " x" << c;
+          ASSERT_EQ(h.pcoords[c], pc[c]) << it << " pcoords" << c << " quad " << isQuad << " shape " << shape;
+        }
+        ASSERT_EQ(sub, 0);
+      }
+  // Both verdicts are exercised, and VTK is asked only about the few on a quad's diagonal, near
+  // an edge, edge-on or degenerate.
+  EXPECT_GT(hits, total / 4) << total;
+  EXPECT_GT(misses, total / 10) << total;
+  EXPECT_LT(asked, total / 20) << total;
 }
 
 TEST(SegmentFilter, DegenerateInputNeverRejects) {
