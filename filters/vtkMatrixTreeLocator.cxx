@@ -547,6 +547,10 @@ void PolygonTypes(vtkDataSet* ds, const I* offsets, vtkIdType nc, std::vector<ui
 // without VTK too (tests/cpp/test_segment_filter checks it against VTK).
 constexpr mtree::QuadSplit kVtkQuadSplit = mtree::quadSplitOfVtk(VTK_MAJOR_VERSION, VTK_MINOR_VERSION);
 
+// Whether this VTK's face tests are the ones mtree/vtk_face_hit.h recomputes (9.1's).
+constexpr bool kVtkFaceTestRecomputed =
+  VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) && VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0);
+
 // vtkHexahedron, vtkWedge and vtkTetra::IntersectWithLine (VTK 9.1) for a segment whose hit is
 // certain to lie on face `face` (convexFirstHitIfCertain's or tetraCertainHit's face: every other
 // face of the cell is far from the line, so VTK's loop over the faces finds only this one, or
@@ -587,7 +591,7 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
   // VTK's face test recomputed (mtree/vtk_face_hit.h: the same bits, without the vtkCell and its
   // virtual calls); VTK's own where that leaves the answer to it.
   mtree::vtk91::FaceHit fast = mtree::vtk91::FaceHit::kAskVtk;
-  if (tol == 0.0)
+  if (kVtkFaceTestRecomputed && tol == 0.0)
   {
     const double* const qp[4] = { q[0], q[1], q[2], q[3] };
     mtree::vtk91::LineHit h;
@@ -1372,6 +1376,37 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
           deferredFace = face;
         }
         return;
+      }
+      // A triangle at tol 0: vtkTriangle::IntersectWithLine recomputed in VTK 9.1's arithmetic
+      // (mtree/vtk_face_hit.h: the same verdict and bits), so the cell is filled only if it wins;
+      // VTK's own test where that leaves the answer to VTK.
+      if (kVtkFaceTestRecomputed && tol == 0.0 && in.Cells.type(static_cast<size_t>(id)) == mtree::kTriangle &&
+        in.Cells.numCellPoints(static_cast<size_t>(id)) == 3)
+      {
+        double q[3][3];
+        for (int k = 0; k < 3; ++k)
+        {
+          const mtree::Vec3 v = in.Cells.cellPoint(static_cast<size_t>(id), k);
+          q[k][0] = v.x, q[k][1] = v.y, q[k][2] = v.z;
+        }
+        mtree::vtk91::LineHit h;
+        const mtree::vtk91::FaceHit v = mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
+        if (v == mtree::vtk91::FaceHit::kMiss)
+        {
+          return;
+        }
+        if (v == mtree::vtk91::FaceHit::kHit)
+        {
+          if (h.t < best)
+          {
+            best = h.t;
+            bestId = id;
+            std::copy(h.x, h.x + 3, x);
+            std::copy(h.pcoords, h.pcoords + 3, pcoords);
+            subId = 0;
+          }
+          return;
+        }
       }
       FillCell(this->DataSet, in, id, cell);
       filled = id;

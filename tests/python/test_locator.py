@@ -436,15 +436,19 @@ def test_rays_equal_brute_force_vtk(grid):
 
 
 @pytest.mark.parametrize("grid", ["brick_hex.su2", "disk_out_ref.ex2", "brick_prism.su2", "brick_pyra.su2",
-                                  "brick_tets.su2", "pipe_flow_tets.vtu"])
+                                  "brick_tets.su2", "pipe_flow_tets.vtu", "meshes/bunny.ply", "meshes/lucy.ply"])
 def test_ray_hit_values_are_vtks_own(grid):
     """At tol 0, a hit's t, x, pcoords and subId are exactly what VTK's IntersectWithLine of the
     returned cell gives (bit for bit): the hexahedra, wedges and tetrahedra whose hit face is
-    certain are answered by VTK's test of that one face (CertainFaceHit), and must not differ
-    from the whole cell's.
+    certain are answered by that one face's test (CertainFaceHit), and the surfaces' triangles by
+    the triangle's, both recomputed in VTK 9.1's arithmetic (mtree/vtk_face_hit.h); neither may
+    differ from VTK's whole cell.
     Segments of random directions and lengths from points inside the grid and around it, some
     nearly parallel to a coordinate plane (grazing the faces of axis-aligned cells)."""
-    ds = matrixtree.read_grid(os.path.join(CFD, grid))
+    if grid.startswith("meshes/"):
+        ds = matrixtree.read_mesh(os.path.join(scenes.data_dir(), grid))
+    else:
+        ds = matrixtree.read_grid(os.path.join(CFD, grid))
     ours = build(vtkMatrixTreeLocator, ds)
     b = np.array(ds.GetBounds()).reshape(3, 2)
     diag = float(np.linalg.norm(b[:, 1] - b[:, 0]))
@@ -466,7 +470,7 @@ def test_ray_hit_values_are_vtks_own(grid):
         t2, x2, pc2, sub2 = reference(0.0), [0.0] * 3, [0.0] * 3, reference(-7)
         assert gc2.IntersectWithLine(list(p1), list(p2), 0.0, t2, x2, pc2, sub2)
         assert (float(t), x, pc, int(sub)) == (float(t2), x2, pc2, int(sub2)), (i, list(p1), list(p2), int(cid))
-    assert hits > n // 2
+    assert hits > (n // 10 if grid.startswith("meshes/") else n // 2)
 
 
 def test_query_statistics_count_what_the_queries_did():
