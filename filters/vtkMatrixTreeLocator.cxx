@@ -1564,11 +1564,35 @@ int vtkMatrixTreeLocator::IntersectWithLine(
         {
           continue;
         }
-        this->DataSet->GetCell(id, cell);
         Hit h;
+        h.id = id;
+        // A triangle: VTK 9.1's test recomputed (the same verdict and bits), as in the first-hit
+        // query; VTK's own cell otherwise, or where that leaves the answer to VTK.
+        if (kVtkFaceTestRecomputed && in.Cells.type(static_cast<size_t>(id)) == mtree::kTriangle &&
+          in.Cells.numCellPoints(static_cast<size_t>(id)) == 3)
+        {
+          double q[3][3];
+          for (int k = 0; k < 3; ++k)
+          {
+            const mtree::Vec3 v = in.Cells.cellPoint(static_cast<size_t>(id), k);
+            q[k][0] = v.x, q[k][1] = v.y, q[k][2] = v.z;
+          }
+          mtree::vtk91::LineHit lh;
+          const mtree::vtk91::FaceHit v = mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, lh);
+          if (v == mtree::vtk91::FaceHit::kHit)
+          {
+            h.t = lh.t;
+            std::copy(lh.x, lh.x + 3, h.x);
+            hits.push_back(h);
+          }
+          if (v != mtree::vtk91::FaceHit::kAskVtk)
+          {
+            continue;
+          }
+        }
+        this->DataSet->GetCell(id, cell);
         double pc[3];
         int sid;
-        h.id = id;
         if (cell->IntersectWithLine(p1, p2, 0.0, h.t, h.x, pc, sid))
         {
           hits.push_back(h);

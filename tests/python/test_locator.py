@@ -241,6 +241,46 @@ def test_all_hits_sorted_and_representation():
     assert counts.sum() == 6 * ours.GetNumberOfReferences()
 
 
+@pytest.mark.parametrize("grid", ["meshes/bunny.ply", "brick_tets.su2"])
+def test_all_hits_are_every_cell_vtk_hits(grid):
+    """IntersectWithLine(p1, p2, points, cellIds): every cell whose own VTK IntersectWithLine at
+    tol 0 reports a hit, once, sorted by t (ties by id), with VTK's hit point to the bit. The
+    reference: vtkCellLocator's cells along the segment (a superset, tolerance 1e-6 of the
+    diagonal), each asked of VTK."""
+    if grid.startswith("meshes/"):
+        ds = matrixtree.read_mesh(os.path.join(scenes.data_dir(), grid))
+    else:
+        ds = matrixtree.read_grid(os.path.join(CFD, grid))
+    ours = build(vtkMatrixTreeLocator, ds)
+    ref = build(vtkCellLocator, ds)
+    b = np.array(ds.GetBounds()).reshape(3, 2)
+    diag = float(np.linalg.norm(b[:, 1] - b[:, 0]))
+    rng = np.random.default_rng(17)
+    gc = vtkGenericCell()
+    total = 0
+    for i in range(120):
+        p1 = b[:, 0] + rng.random(3) * (b[:, 1] - b[:, 0])
+        u = rng.normal(size=3)
+        p2 = p1 + u / np.linalg.norm(u) * diag * (0.05, 0.3)[i % 2]
+        pts, ids = vtkPoints(), vtkIdList()
+        pts.SetDataTypeToDouble()  # the hit points unrounded
+        n = ours.IntersectWithLine(list(p1), list(p2), pts, ids)
+        got = [(ids.GetId(k), pts.GetPoint(k)) for k in range(n)]
+        cand = vtkIdList()
+        ref.FindCellsAlongLine(list(p1), list(p2), 1e-6 * diag, cand)
+        want = []
+        for k in range(cand.GetNumberOfIds()):
+            cid = cand.GetId(k)
+            ds.GetCell(cid, gc)
+            t, x, pc, sub = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0)
+            if gc.IntersectWithLine(list(p1), list(p2), 0.0, t, x, pc, sub):
+                want.append((float(t), cid, tuple(x)))
+        want.sort(key=lambda h: (h[0], h[1]))
+        assert got == [(cid, x) for _, cid, x in want], i
+        total += n
+    assert total > 20
+
+
 def test_rebuild_only_when_needed():
     ds = matrixtree.read_grid(os.path.join(CFD, "brick_hex.su2"))
     loc = build(vtkMatrixTreeLocator, ds)
