@@ -661,6 +661,26 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
   return true;
 }
 
+// Cell `id`'s vtkTriangle::IntersectWithLine at tol 0, recomputed in VTK 9.1's arithmetic
+// (mtree/vtk_face_hit.h: the same verdict and bits) where the cell is a triangle and this is
+// VTK 9.1; kAskVtk otherwise, and where the recomputation leaves the answer to VTK.
+mtree::vtk91::FaceHit RecomputedTriangleHit(const mtree::CellSet& cells, vtkIdType id, const double p1[3],
+  const double p2[3], mtree::vtk91::LineHit& h)
+{
+  const size_t c = static_cast<size_t>(id);
+  if (!kVtkFaceTestRecomputed || cells.type(c) != mtree::kTriangle || cells.numCellPoints(c) != 3)
+  {
+    return mtree::vtk91::FaceHit::kAskVtk;
+  }
+  double q[3][3];
+  for (int k = 0; k < 3; ++k)
+  {
+    const mtree::Vec3 v = cells.cellPoint(c, k);
+    q[k][0] = v.x, q[k][1] = v.y, q[k][2] = v.z;
+  }
+  return mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
+}
+
 // The ray queries' first test of a leaf's candidates (tol = 0): the segment o + t d, t in
 // [0, bound], against each candidate's quantized box in this leaf (LeafBoxes, read in order),
 // in double precision and grown by a margin (below). The quantized box contains the part of
@@ -1377,20 +1397,12 @@ int vtkMatrixTreeLocator::IntersectWithLine(const double p1[3], const double p2[
         }
         return;
       }
-      // A triangle at tol 0: vtkTriangle::IntersectWithLine recomputed in VTK 9.1's arithmetic
-      // (mtree/vtk_face_hit.h: the same verdict and bits), so the cell is filled only if it wins;
-      // VTK's own test where that leaves the answer to VTK.
-      if (kVtkFaceTestRecomputed && tol == 0.0 && in.Cells.type(static_cast<size_t>(id)) == mtree::kTriangle &&
-        in.Cells.numCellPoints(static_cast<size_t>(id)) == 3)
+      // A triangle at tol 0 without VTK (RecomputedTriangleHit), so the cell is filled only if it
+      // wins.
+      if (tol == 0.0)
       {
-        double q[3][3];
-        for (int k = 0; k < 3; ++k)
-        {
-          const mtree::Vec3 v = in.Cells.cellPoint(static_cast<size_t>(id), k);
-          q[k][0] = v.x, q[k][1] = v.y, q[k][2] = v.z;
-        }
         mtree::vtk91::LineHit h;
-        const mtree::vtk91::FaceHit v = mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
+        const mtree::vtk91::FaceHit v = RecomputedTriangleHit(in.Cells, id, p1, p2, h);
         if (v == mtree::vtk91::FaceHit::kMiss)
         {
           return;
@@ -1566,29 +1578,18 @@ int vtkMatrixTreeLocator::IntersectWithLine(
         }
         Hit h;
         h.id = id;
-        // A triangle: VTK 9.1's test recomputed (the same verdict and bits), as in the first-hit
-        // query; VTK's own cell otherwise, or where that leaves the answer to VTK.
-        if (kVtkFaceTestRecomputed && in.Cells.type(static_cast<size_t>(id)) == mtree::kTriangle &&
-          in.Cells.numCellPoints(static_cast<size_t>(id)) == 3)
+        // A triangle without VTK, as in the first-hit query; VTK's own cell otherwise.
+        mtree::vtk91::LineHit lh;
+        const mtree::vtk91::FaceHit v = RecomputedTriangleHit(in.Cells, id, p1, p2, lh);
+        if (v == mtree::vtk91::FaceHit::kHit)
         {
-          double q[3][3];
-          for (int k = 0; k < 3; ++k)
-          {
-            const mtree::Vec3 v = in.Cells.cellPoint(static_cast<size_t>(id), k);
-            q[k][0] = v.x, q[k][1] = v.y, q[k][2] = v.z;
-          }
-          mtree::vtk91::LineHit lh;
-          const mtree::vtk91::FaceHit v = mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, lh);
-          if (v == mtree::vtk91::FaceHit::kHit)
-          {
-            h.t = lh.t;
-            std::copy(lh.x, lh.x + 3, h.x);
-            hits.push_back(h);
-          }
-          if (v != mtree::vtk91::FaceHit::kAskVtk)
-          {
-            continue;
-          }
+          h.t = lh.t;
+          std::copy(lh.x, lh.x + 3, h.x);
+          hits.push_back(h);
+        }
+        if (v != mtree::vtk91::FaceHit::kAskVtk)
+        {
+          continue;
         }
         this->DataSet->GetCell(id, cell);
         double pc[3];
