@@ -3,7 +3,8 @@
 // pcoords are VTK's bit for bit without a vtkCell, its vtkPoints and their virtual calls.
 //
 // The ray queries use it for the one face of a cell whose hit is already certain (the locator's
-// CertainFaceHit): there VTK's own face test cost 12-28% of a ray on the volume grids. Only the
+// CertainFaceHit), where VTK's own face test cost 12-28% of a ray on the volume grids, and for
+// a surface's triangles (RecomputedTriangleHit). Only the
 // main path is recomputed: the triangle's plane (its normal normalised as vtkTriangle::
 // ComputeNormal does), the line's crossing of it (vtkPlane::IntersectWithLine: parallel when
 // |den| <= 1e-6 |num|), the crossing projected back onto the plane and its two pcoords by
@@ -17,8 +18,8 @@
 // vtkQuad (9.1) means to split along the shorter diagonal, but it measures both diagonals
 // through vtkPoints::GetPoint pointers that share one tuple buffer, so both lengths come out 0;
 // the tie goes to the point ids, which a quad built by vtkQuad's constructor has all 0: the
-// split (0, 1, 2) + (2, 3, 0), whatever the quad's shape (segment_filter.h's kDiagonal02; the
-// test below would catch a VTK that measured them). The triangles are tried in that order and
+// split (0, 1, 2) + (2, 3, 0), whatever the quad's shape (segment_filter.h's kDiagonal02;
+// test_segment_filter's long rectangles would catch a VTK that measured them). The triangles are tried in that order and
 // the hit's (r, s) mapped back as vtkQuad maps them.
 //
 // No FMA may contract these products (the project builds without -march; a build with FMA
