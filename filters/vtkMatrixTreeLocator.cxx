@@ -593,9 +593,8 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
   mtree::vtk91::FaceHit fast = mtree::vtk91::FaceHit::kAskVtk;
   if (kVtkFaceTestRecomputed && tol == 0.0)
   {
-    const double* const qp[4] = { q[0], q[1], q[2], q[3] };
     mtree::vtk91::LineHit h;
-    fast = n == 4 ? mtree::vtk91::quadLineHit(qp, p1, p2, h) : mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
+    fast = n == 4 ? mtree::vtk91::quadLineHit(q, p1, p2, h) : mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
     if (fast == mtree::vtk91::FaceHit::kMiss)
     {
       return false;
@@ -673,11 +672,7 @@ mtree::vtk91::FaceHit RecomputedTriangleHit(const mtree::CellSet& cells, vtkIdTy
     return mtree::vtk91::FaceHit::kAskVtk;
   }
   double q[3][3];
-  for (int k = 0; k < 3; ++k)
-  {
-    const mtree::Vec3 v = cells.cellPoint(c, k);
-    q[k][0] = v.x, q[k][1] = v.y, q[k][2] = v.z;
-  }
+  GatherPoints(cells, c, 3, &q[0][0]);
   return mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
 }
 

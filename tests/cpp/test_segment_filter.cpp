@@ -696,9 +696,8 @@ TEST(SegmentFilter, Vtk91FaceTestIsVtks) {
         int sub = -1;
         const int vtkHit = cell->IntersectWithLine(a, b, 0.0, t, x, pc, sub);
         mtree::vtk91::LineHit h;
-        const double* const q[4] = {v[0], v[1], v[2], v[3]};
         const mtree::vtk91::FaceHit ours =
-            isQuad ? mtree::vtk91::quadLineHit(q, a, b, h) : mtree::vtk91::triangleLineHit(v[0], v[1], v[2], a, b, h);
+            isQuad ? mtree::vtk91::quadLineHit(v, a, b, h) : mtree::vtk91::triangleLineHit(v[0], v[1], v[2], a, b, h);
         total += resolved;
         if (ours == mtree::vtk91::FaceHit::kAskVtk) {
           asked += resolved;

@@ -122,7 +122,7 @@ inline FaceHit triangleLineHit(const double q0[3], const double q1[3], const dou
 
 /// vtkQuad::IntersectWithLine(p1, p2, 0, ...) of the quad with points q[0..3], its point ids the
 /// constructor's (all 0).
-inline FaceHit quadLineHit(const double* const q[4], const double p1[3], const double p2[3], LineHit& h) {
+inline FaceHit quadLineHit(const double q[4][3], const double p1[3], const double p2[3], LineHit& h) {
   const FaceHit first = triangleLineHit(q[0], q[1], q[2], p1, p2, h);
   if (first == FaceHit::kHit) {
     h.pcoords[0] = h.pcoords[0] + h.pcoords[1];
