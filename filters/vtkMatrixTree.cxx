@@ -10,8 +10,8 @@
 #include "vtkPoints.h"
 #include "vtkPolyData.h"
 
-#include "mtree/opencl.h"
-#include "mtree/raycast.h"
+#include "mtree/device/opencl.h"
+#include "mtree/rays/raycast.h"
 
 #include <chrono>
 #include <memory>

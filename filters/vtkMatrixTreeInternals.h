@@ -3,8 +3,8 @@
 #ifndef vtkMatrixTreeInternals_h
 #define vtkMatrixTreeInternals_h
 
-#include "mtree/builder.h"
-#include "mtree/primitives.h"
+#include "mtree/core/builder.h"
+#include "mtree/core/primitives.h"
 
 #include <string>
 #include <vector>

@@ -21,12 +21,12 @@
 #include "vtkTriangle.h"
 #include "vtkSmartPointer.h"
 
-#include "mtree/builder.h"
-#include "mtree/cell_eval.h"
-#include "mtree/cells.h"
-#include "mtree/segment_filter.h"
-#include "mtree/vtk_face_hit.h"
-#include "mtree/opencl.h"
+#include "mtree/core/builder.h"
+#include "mtree/cells/cell_eval.h"
+#include "mtree/cells/cells.h"
+#include "mtree/cells/segment_filter.h"
+#include "mtree/vtk91/face_hit.h"
+#include "mtree/device/opencl.h"
 
 #include <omp.h>
 
@@ -259,7 +259,7 @@ void FillCell(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, vtkIdType
 
 // Does cell `id` contain x, as VTK's EvaluatePosition decides? If so the cell is filled into
 // `cell` and pcoords and weights are VTK's. engineEval: the linear volume cells are evaluated by
-// the engine (mtree/cell_eval.h: VTK's arithmetic, VTK asked where a different rounding could
+// the engine (mtree/cells/cell_eval.h: VTK's arithmetic, VTK asked where a different rounding could
 // change the answer), and only a containing cell is filled; otherwise every cell is filled and
 // handed to VTK (tetrahedra after a cheap pre-test that only rejects what VTK would).
 MT_ALWAYS_INLINE bool CellContains(vtkDataSet* ds, const vtkMatrixTreeLocatorInternals& in, const double x[3], vtkIdType id,
@@ -547,7 +547,7 @@ void PolygonTypes(vtkDataSet* ds, const I* offsets, vtkIdType nc, std::vector<ui
 // without VTK too (tests/cpp/test_segment_filter checks it against VTK).
 constexpr mtree::QuadSplit kVtkQuadSplit = mtree::quadSplitOfVtk(VTK_MAJOR_VERSION, VTK_MINOR_VERSION);
 
-// Whether this VTK's face tests are the ones mtree/vtk_face_hit.h recomputes (9.1's).
+// Whether this VTK's face tests are the ones mtree/vtk91/face_hit.h recomputes (9.1's).
 constexpr bool kVtkFaceTestRecomputed =
   VTK_VERSION_NUMBER >= VTK_VERSION_CHECK(9, 1, 0) && VTK_VERSION_NUMBER < VTK_VERSION_CHECK(9, 2, 0);
 
@@ -588,7 +588,7 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
     q[k][0] = p.x, q[k][1] = p.y, q[k][2] = p.z;
   }
   double pc[3];
-  // VTK's face test recomputed (mtree/vtk_face_hit.h: the same bits, without the vtkCell and its
+  // VTK's face test recomputed (mtree/vtk91/face_hit.h: the same bits, without the vtkCell and its
   // virtual calls); VTK's own where that leaves the answer to it.
   mtree::vtk91::FaceHit fast = mtree::vtk91::FaceHit::kAskVtk;
   if (kVtkFaceTestRecomputed && tol == 0.0)
@@ -661,7 +661,7 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
 }
 
 // Cell `id`'s vtkTriangle::IntersectWithLine at tol 0, recomputed in VTK 9.1's arithmetic
-// (mtree/vtk_face_hit.h: the same verdict and bits) where the cell is a triangle and this is
+// (mtree/vtk91/face_hit.h: the same verdict and bits) where the cell is a triangle and this is
 // VTK 9.1; kAskVtk otherwise, and where the recomputation leaves the answer to VTK.
 mtree::vtk91::FaceHit RecomputedTriangleHit(const mtree::CellSet& cells, vtkIdType id, const double p1[3],
   const double p2[3], mtree::vtk91::LineHit& h)

@@ -266,7 +266,7 @@ public:
   /**
    * How FindCell (and FindCells on the CPU) evaluates its candidate cells. On (default): the
    * linear volume cells (tetrahedron, voxel, hexahedron, wedge, pyramid) are evaluated by the
-   * engine (mtree/cell_eval.h), which repeats VTK 9.1's EvaluatePosition operation for
+   * engine (mtree/cells/cell_eval.h), which repeats VTK 9.1's EvaluatePosition operation for
    * operation, so the cell ids, pcoords and weights are VTK's, bit for bit; where a different
    * rounding could change the answer (a point within 1e-9 of the cell's tolerance boundary, a
    * Newton step at the convergence threshold, a degenerate cell, a NaN) the cell goes to VTK's

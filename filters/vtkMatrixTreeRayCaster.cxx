@@ -15,10 +15,10 @@
 #include "vtkUnsignedCharArray.h"
 #include "vtkUnsignedIntArray.h"
 
-#include "mtree/opencl.h"
-#include "mtree/opencl_render.h"
-#include "mtree/render.h"
-#include "mtree/sah_kdtree.h"
+#include "mtree/device/opencl.h"
+#include "mtree/device/opencl_render.h"
+#include "mtree/rays/render.h"
+#include "mtree/rays/sah_kdtree.h"
 
 #include <algorithm>
 #include <chrono>

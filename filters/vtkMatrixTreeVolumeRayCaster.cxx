@@ -14,8 +14,8 @@
 #include "vtkStreamingDemandDrivenPipeline.h"
 #include "vtkUnsignedCharArray.h"
 
-#include "mtree/opencl.h"
-#include "mtree/volume.h"
+#include "mtree/device/opencl.h"
+#include "mtree/volume/volume.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,5 +1,5 @@
 /* The §5.1 bottom-up build of a matrix tree over triangles (Andrysco & Tricoche 2011, after
- * Kalojanov & Slusallek 2009), one kernel per step. The host (engine/src/opencl_build.cpp)
+ * Kalojanov & Slusallek 2009), one kernel per step. The host (engine/src/device/opencl_build.cpp)
  * runs them in order:
  *   mt_bounds         root box: per-group min/max of the triangles' vertices (step 1's reduction)
  *   mt_count_mark     step 2: per triangle, count overlapped leaves, mark their blocks

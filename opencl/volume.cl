@@ -1,6 +1,6 @@
-/* Volume ray marching through the block-sparse volume (engine/include/mtree/volume.h): one
+/* Volume ray marching through the block-sparse volume (engine/include/mtree/volume/volume.h): one
  * work-item per ray, the same arithmetic in the same order as renderVolume() in
- * engine/src/volume.cpp (ray set-up and positions in double, interpolation and compositing in
+ * engine/src/volume/volume.cpp (ray set-up and positions in double, interpolation and compositing in
  * float, or in double for doublePrecision), so that the device image matches the CPU's:
  *   - trilinear interpolation of the 8 cell corners read through the pointer matrix and the
  *     DIM^3 blocks (a cell with an absent corner block is invisible: no sample);
@@ -266,7 +266,7 @@ VR_DEFINE_MARCH(double, d)
  * (a 1-voxel apron towards +x/+y/+z, so a cell's 8 corners are in its brick), brick pointers in
  * level-0 order (MT_NULL = absent), one 64-bit visible-cell mask per brick z layer, and an offset
  * added to a stored value (signed input). The two marchers below follow the CPU's two marchers
- * for this storage step for step (engine/src/volume.cpp), so each gives the CPU's image:
+ * for this storage step for step (engine/src/volume/volume.cpp), so each gives the CPU's image:
  *   float accumulation  marchApron(): positions P0 + k S in float, interpolation z, then y, then x,
  *                       the offset added after it, transmittance compositing (C += T e,
  *                       T *= 1 - a), termination at T <= 1 - threshold;

@@ -1,5 +1,5 @@
 // rays_bench: the paper's ray-tracing experiment (§6, Table 1) on one scene, every tree and
-// traversal through the same renderer (engine/include/mtree/render.h): pinhole camera, primary
+// traversal through the same renderer (engine/include/mtree/rays/render.h): pinhole camera, primary
 // rays, one shadow ray per hit towards a point light, Lambert shading, OpenMP over image rows.
 // bench/rays.py writes the scene file, runs this program, adds Embree and writes the tables.
 //
@@ -45,12 +45,12 @@
 #include <string>
 #include <vector>
 
-#include "mtree/builder.h"
-#include "mtree/intersect.h"
-#include "mtree/opencl.h"
-#include "mtree/opencl_render.h"
-#include "mtree/render.h"
-#include "mtree/sah_kdtree.h"
+#include "mtree/core/builder.h"
+#include "mtree/rays/intersect.h"
+#include "mtree/device/opencl.h"
+#include "mtree/device/opencl_render.h"
+#include "mtree/rays/render.h"
+#include "mtree/rays/sah_kdtree.h"
 
 namespace {
 

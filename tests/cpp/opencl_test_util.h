@@ -8,7 +8,7 @@
 #include <memory>
 #include <string>
 
-#include "mtree/opencl.h"
+#include "mtree/device/opencl.h"
 
 namespace mtest {
 

@@ -12,7 +12,7 @@
 #include <tuple>
 #include <vector>
 
-#include "mtree/block_sparse.h"
+#include "mtree/core/block_sparse.h"
 #include "test_util.h"
 
 namespace {

@@ -1,4 +1,4 @@
-// mtree::evaluateLinearCell (engine/include/mtree/cell_eval.h) against VTK's own
+// mtree::evaluateLinearCell (engine/include/mtree/cells/cell_eval.h) against VTK's own
 // vtkCell::EvaluatePosition, the reference it must reproduce: whenever the engine answers (not
 // kAskVtk), VTK must make the same inside/outside decision, and for an inside answer give the
 // same pcoords and weights, bit for bit (the engine repeats VTK's operations; 1e-12 is the
@@ -35,7 +35,7 @@
 #include <string>
 #include <vector>
 
-#include "mtree/cell_eval.h"
+#include "mtree/cells/cell_eval.h"
 #include "test_util.h"
 #include "vtk_grid_util.h"
 

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "mtree/builder.h"
-#include "mtree/cells.h"
+#include "mtree/core/builder.h"
+#include "mtree/cells/cells.h"
 #include "test_util.h"
 #include "vtk_grid_util.h"
 

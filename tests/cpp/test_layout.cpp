@@ -5,8 +5,8 @@
 #include <cstddef>
 #include <type_traits>
 
-#include "mtree/block_sparse.h"
-#include "mtree/layout.h"
+#include "mtree/core/block_sparse.h"
+#include "mtree/core/layout.h"
 
 namespace {
 

@@ -4,8 +4,8 @@
 // closed box, so the walk must not lose what the test keeps).
 #include "test_util.h"
 
-#include "mtree/intersect.h"
-#include "mtree/render.h"
+#include "mtree/rays/intersect.h"
+#include "mtree/rays/render.h"
 
 namespace {
 

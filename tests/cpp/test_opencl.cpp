@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "mtree/opencl.h"
+#include "mtree/device/opencl.h"
 #include "opencl_test_util.h"
 #include "test_util.h"
 

@@ -35,8 +35,8 @@
 #include <string>
 #include <vector>
 
-#include "mtree/opencl.h"
-#include "mtree/volume.h"
+#include "mtree/device/opencl.h"
+#include "mtree/volume/volume.h"
 #include "opencl_test_util.h"
 #include "vtk_test_util.h"
 #include "test_util.h"

@@ -10,7 +10,7 @@
 #include <tuple>
 #include <vector>
 
-#include "mtree/parallel.h"
+#include "mtree/core/parallel.h"
 #include "test_util.h"
 
 namespace {

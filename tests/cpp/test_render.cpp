@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "mtree/render.h"
+#include "mtree/rays/render.h"
 #include "test_util.h"
 
 namespace {

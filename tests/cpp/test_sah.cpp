@@ -31,9 +31,9 @@
 #include <string>
 #include <vector>
 
-#include "mtree/intersect.h"
-#include "mtree/render.h"
-#include "mtree/sah_kdtree.h"
+#include "mtree/rays/intersect.h"
+#include "mtree/rays/render.h"
+#include "mtree/rays/sah_kdtree.h"
 #include "test_util.h"
 
 namespace {

@@ -1,4 +1,4 @@
-// segmentMayHitCell (engine/include/mtree/segment_filter.h) against VTK itself: whenever the
+// segmentMayHitCell (engine/include/mtree/cells/segment_filter.h) against VTK itself: whenever the
 // filter rejects a (segment, cell) pair, VTK's own vtkCell::IntersectWithLine with the same
 // tolerance must report no hit at t <= tMax. Checked on the real CFD grids (tetrahedra,
 // pyramids + tetrahedra, hexahedra, prisms) and a real surface (triangles), for random segments
@@ -38,8 +38,8 @@
 #include <string>
 #include <vector>
 
-#include "mtree/segment_filter.h"
-#include "mtree/vtk_face_hit.h"
+#include "mtree/cells/segment_filter.h"
+#include "mtree/vtk91/face_hit.h"
 #include "test_util.h"
 #include "vtk_grid_util.h"
 

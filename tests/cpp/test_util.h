@@ -32,11 +32,11 @@
 #include <unordered_map>
 #include <vector>
 
-#include "mtree/builder.h"
-#include "mtree/geometry.h"
-#include "mtree/matrix_tree.h"
-#include "mtree/primitives.h"
-#include "mtree/raycast.h"
+#include "mtree/core/builder.h"
+#include "mtree/core/geometry.h"
+#include "mtree/core/matrix_tree.h"
+#include "mtree/core/primitives.h"
+#include "mtree/rays/raycast.h"
 
 namespace mtest {
 

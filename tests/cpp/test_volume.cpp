@@ -1,4 +1,4 @@
-// Volume ray casting on the block-sparse encoding (engine/include/mtree/volume.h), checked
+// Volume ray casting on the block-sparse encoding (engine/include/mtree/volume/volume.h), checked
 // against analytic transmittance, a dense brute-force sampler and marcher written here, and
 // itself with empty-space skipping switched off.
 #include <gtest/gtest.h>
@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "mtree/volume.h"
+#include "mtree/volume/volume.h"
 #include "volume_test_util.h"
 
 using namespace mtree;

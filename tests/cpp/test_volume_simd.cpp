@@ -1,4 +1,4 @@
-// The AVX2 marcher of UInt8/UInt16 apron bricks (engine/src/volume.cpp, marchApronAvx2), and the
+// The AVX2 marcher of UInt8/UInt16 apron bricks (engine/src/volume/volume.cpp, marchApronAvx2), and the
 // AVX2 set-up of 4 perspective rays at once (setupRays4), against the SSE2 marcher and the scalar
 // set-up they replace at run time (VolumeRenderOptions::vectorized = false takes both): the same image bit for bit (not merely within a tolerance: both
 // do the same float operations in the same order, none fused, and composite the samples one after
@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "mtree/volume.h"
+#include "mtree/volume/volume.h"
 #include "volume_test_util.h"
 
 using namespace mtree;

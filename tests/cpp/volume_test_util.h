@@ -12,7 +12,7 @@
 #include <vtkPointData.h>
 #include <vtkStructuredPointsReader.h>
 
-#include "mtree/volume.h"
+#include "mtree/volume/volume.h"
 #include "test_util.h"
 
 namespace mtest {

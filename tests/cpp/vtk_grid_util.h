@@ -15,8 +15,8 @@
 #include <vtkVersionMacros.h>
 #include <vtkXMLUnstructuredGridReader.h>
 
-#include "mtree/cells.h"
-#include "mtree/segment_filter.h"
+#include "mtree/cells/cells.h"
+#include "mtree/cells/segment_filter.h"
 #include "test_util.h"
 
 namespace mtest {

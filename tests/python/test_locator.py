@@ -481,7 +481,7 @@ def test_ray_hit_values_are_vtks_own(grid):
     """At tol 0, a hit's t, x, pcoords and subId are exactly what VTK's IntersectWithLine of the
     returned cell gives (bit for bit): the hexahedra, wedges and tetrahedra whose hit face is
     certain are answered by that one face's test (CertainFaceHit), and the surfaces' triangles by
-    the triangle's, both recomputed in VTK 9.1's arithmetic (mtree/vtk_face_hit.h); neither may
+    the triangle's, both recomputed in VTK 9.1's arithmetic (mtree/vtk91/face_hit.h); neither may
     differ from VTK's whole cell.
     Segments of random directions and lengths from points inside the grid and around it, some
     nearly parallel to a coordinate plane (grazing the faces of axis-aligned cells)."""
