@@ -67,12 +67,22 @@ def machine() -> dict:
             "python": platform.python_version()}
 
 
-def table(rows: list, cols: list) -> str:
-    def fmt(v):
-        if isinstance(v, float):
-            return f"{v:.3g}" if abs(v) < 100 else f"{v:.1f}"
-        return str(v)
+def require_driver(path: str) -> str:
+    """``path`` if that C++ benchmark driver exists, else exits saying how to build it."""
+    if not os.path.exists(path):
+        raise SystemExit(f"{path} not found: the bench/cpp drivers are built with -DMATRIXTREE_BENCHMARKS=ON "
+                         "(bash scripts/setup.sh configures build/ so)")
+    return path
 
+
+def fmt(v) -> str:
+    """A table cell: floats to 3 significant digits (one decimal from 100 up), the rest as str."""
+    if isinstance(v, float):
+        return f"{v:.3g}" if abs(v) < 100 else f"{v:.1f}"
+    return str(v)
+
+
+def table(rows: list, cols: list) -> str:
     widths = [max(len(c), *(len(fmt(r.get(c, ""))) for r in rows)) for c in cols]
     out = ["  ".join(c.rjust(w) for c, w in zip(cols, widths)), "  ".join("-" * w for w in widths)]
     for r in rows:
@@ -81,11 +91,6 @@ def table(rows: list, cols: list) -> str:
 
 
 def markdown(rows: list, cols: list) -> str:
-    def fmt(v):
-        if isinstance(v, float):
-            return f"{v:.3g}" if abs(v) < 100 else f"{v:.1f}"
-        return str(v)
-
     out = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
     for r in rows:
         out.append("| " + " | ".join(fmt(r.get(c, "")) for c in cols) + " |")

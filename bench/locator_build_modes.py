@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Build time of vtkMatrixTreeLocator and vtkStaticCellLocator in the three ways a build happens,
 each locator in its own fresh process, the two alternated, so that neither inherits memory the
-other freed (in one process the second locator reuses the heap the first one returned: on
-pipe_flow_tets our build took 26 ms after vtkStaticCellLocator's and 34 ms before it).
+other freed (in one process the second locator reuses the heap the first one returned and
+builds faster for it: bench/locator_build_states.py --together shows by how much).
 
     .venv/bin/python bench/locator_build_modes.py [--grid FILE ...] [--rounds N] [--repeats N]
                                                    [--build-dir DIR] [--json OUT]

@@ -13,9 +13,8 @@ FreeSearchStructure), build_first_ms (the first of those 3), rebuild_ms (median 
 calls after the points moved, without FreeSearchStructure: a deforming mesh's cost per frame),
 all three measured with each locator alone in a fresh process (--build-repeats such processes per
 locator, alternating the locators' order, median; default 1): built in the shared process after
-other locators, a locator inherits their heap and ran up to 2x faster (vtkStaticCellLocator on
-brick_hex: 1.8-2.3 ms alone, 1.05 ms fourth, medians of five runs; docs/bench_locators.md, "Builds measured alone"). The
-shared process's values are kept as build_ms_shared, build_first_ms_shared, rebuild_ms_shared.
+other locators, a locator inherits their heap and builds faster (bench/locator_build_states.py
+--together shows by how much). The shared process's values are kept as build_ms_shared, build_first_ms_shared, rebuild_ms_shared.
 bytes (ours:
 GetMemorySize, everything the locator holds; vtkStaticCellLocator: estimated from its layout,
 VTK 9.1 reports none; the other VTK locators: -1), findcell_pts_per_s_1thread (findcell_pts_per_cpu_s_1thread: the same loop timed by its
@@ -44,7 +43,7 @@ import statistics
 import subprocess
 import tempfile
 
-from _common import ROOT, machine, table, write_outputs
+from _common import ROOT, machine, require_driver, table, write_outputs
 import matrixtree
 from matrixtree import scenes
 
@@ -114,9 +113,7 @@ def main() -> int:
     p.add_argument("--build-repeats", type=int, default=1,
                    help="fresh processes per locator and grid that time its builds alone (median; default 1)")
     a = p.parse_args()
-    exe = driver(a.build_dir)
-    if not os.path.exists(exe):
-        p.error(f"{exe} is missing: run scripts/setup.sh (it builds the benchmark driver)")
+    exe = require_driver(driver(a.build_dir))
     d = scenes.data_dir()
     paths = a.grid or sorted(glob.glob(os.path.join(d, "cfd", "*.*")) + glob.glob(os.path.join(d, "meshes", "*.*")))
     paths = [x for x in paths if not x.endswith(".txt")]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The issue-4 targets table from several bench/locators.py runs: per grid, one locator's ratios
+"""The locator's targets table from several bench/locators.py runs: per grid, one locator's ratios
 to vtkStaticCellLocator (each computed within its run), as the median over the runs and their
 range, in bold where the median meets the target.
 
@@ -8,13 +8,13 @@ range, in bold where the median meets the target.
 
 Columns: FindCell (one-thread CPU time, target >= 5), rays (one-thread CPU time, >= 10): the
 paired ratios (findcell_paired_speedup_vs_static, rays_paired_speedup_vs_static: slice by slice,
-back to back with vtkStaticCellLocator) where a run has them, else, for older runs, the quotient
-of the two locators' separate loops (findcell_cpu_speedup_vs_static, rays_cpu_speedup_vs_static); build
+back to back with vtkStaticCellLocator) where a run's JSON has them, else the quotient of the
+two locators' separate loops (findcell_cpu_speedup_vs_static, rays_cpu_speedup_vs_static); build
 (build_ms: median of 3 builds, each locator alone in a fresh process since bench/locators.py
 measures it so; <= 1), first build (build_first_ms, <= 1), rebuild after the points moved
 (<= 1 is not a target, shown for deforming meshes), memory (<= 1). --previous: runs whose
 median build ratio goes in brackets after the shared-process one (build_shared_ratio_vs_static,
-or build_ratio_vs_static for runs that predate the isolated builds).
+or build_ratio_vs_static where a run has no shared-process build).
 """
 
 from __future__ import annotations

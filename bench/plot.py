@@ -8,7 +8,7 @@ build_phases.png: per scene, the median build time of the matrix octree and kd-t
 the §5.1 phases (the paper's Figure 4), next to VTK's locators built in the same run.
 height_sweep.png: render and build time against the tree height per scene, auto height marked.
 locator_ratios.png: per grid and mesh, the matrix octree's FindCell and ray speed-ups, build
-time and memory as ratios to vtkStaticCellLocator (bench/locators.py JSON), with the issue's
+time and memory as ratios to vtkStaticCellLocator (bench/locators.py JSON), with the locator's
 target for each (5x, 10x, no slower, no larger).
 """
 
@@ -103,8 +103,8 @@ def plot_locators(runs, path):
     ours = per_run[0]
     grids = [r["grid"].rsplit(".", 1)[0] for r in ours]
     panels = [  # (column, title, target, True if higher is better)
-        # The targets table's keys (bench/locators_summary.py): the paired ratios, else, in older
-        # runs, the quotients of CPU times, else of wall times.
+        # The targets table's keys (bench/locators_summary.py): the paired ratios, else, in a JSON
+        # file without them, the quotients of CPU times, else of wall times.
         (("findcell_paired_speedup_vs_static", "findcell_cpu_speedup_vs_static", "findcell_speedup_vs_static"),
          "FindCell speed-up (1 thread)", 5.0, True),
         (("rays_paired_speedup_vs_static", "rays_cpu_speedup_vs_static", "rays_speedup_vs_static"),

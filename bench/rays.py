@@ -35,7 +35,7 @@ import time
 
 import numpy as np
 
-from _common import ROOT, machine, markdown, table  # noqa: F401  (sys.path set up there)
+from _common import ROOT, machine, markdown, require_driver, table  # noqa: F401  (sys.path set up there)
 from matrixtree import scenes
 
 try:
@@ -545,13 +545,12 @@ def main(argv=None) -> int:
     ap.add_argument("--device", default="",
                     help="OpenCL device selector (P:D, index or name part; default $MATRIXTREE_OPENCL_DEVICE/first)")
     ap.add_argument("--json", default=os.path.join(ROOT, "out", "bench_rays.json"))
-    ap.add_argument("--md", help="write the markdown table here (e.g. docs/bench_rays.md)")
+    ap.add_argument("--md", help="write the markdown table here (e.g. out/bench_rays.md)")
     ap.add_argument("--chart", help="write the speed-up chart here (e.g. docs/images/rays_speedup.png)")
     ap.add_argument("--heatmaps", help="write per-scene heat maps (PNG) into this folder")
     args = ap.parse_args(argv)
 
-    if not os.path.exists(BIN):
-        raise SystemExit(f"{BIN} not found: run `bash scripts/setup.sh` first (it builds it)")
+    require_driver(BIN)
     specs = args.scene or DEFAULT_SCENES
     if not args.frames:
         args.frames = 30

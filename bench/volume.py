@@ -9,7 +9,9 @@ images; PSNR of each against a reference (ours at 1/16 of the smallest spacing, 
 no early termination); allocated vs dense blocks and bytes; and our speed/accuracy curve over the
 sample distance. VTK renders off-screen, so run it under a display, e.g.
 
-    xvfb-run -a .venv/bin/python bench/volume.py --json out/volume.json --md docs/bench_volume.md
+    xvfb-run -a .venv/bin/python bench/volume.py --json out/volume.json --md out/bench_volume.md
+
+``--md`` writes the tables as markdown and its two pictures into ``images/`` beside it.
 
 ``--backend all`` adds our OpenCL backend (row ``matrixtree-opencl``, with ``max_diff_vs_cpu``).
 """
@@ -343,7 +345,7 @@ def main() -> int:
                     "matrixtree-opencl, frames interleaved with the others, its image compared with our CPU "
                     "image: max_diff_vs_cpu). The CPU rows stay in both: they are the device's reference")
     ap.add_argument("--json", default=os.path.join(ROOT, "out", "volume.json"))
-    ap.add_argument("--md", default=None, help="write the markdown report (and docs/images/volume_*.png)")
+    ap.add_argument("--md", default=None, help="write the markdown report (and its pictures in images/ beside it)")
     args = ap.parse_args()
     paths = args.volume or sorted(p for p in glob.glob(os.path.join(scenes.data_dir(), "volumes", "*"))
                                   if not p.endswith(".raw"))

@@ -1,10 +1,11 @@
 """One thread each, CPU time per frame: ours against vtkFixedPointVolumeRayCastMapper, frames
 interleaved (VTK, ours, VTK, ...), the median per volume: bench/volume.py's ``cpu_ms_1t`` loop
-alone, quick enough to repeat, e.g. alternating two builds on a shared machine:
+alone, quick enough to repeat:
 
-    for b in /tmp/old-build build-vol; do
-      PYTHONPATH=$b/python xvfb-run -a .venv/bin/python bench/volume_cpu.py --frames 7
-    done
+    xvfb-run -a .venv/bin/python bench/volume_cpu.py --frames 7
+
+To compare two build trees on a shared machine, run it for each in turn, several times
+(``PYTHONPATH=BUILD/python`` picks the build whose ``matrixtree_vtk`` is measured).
 
 ``--simd auto sse2`` renders ours twice per frame, the second time with MATRIXTREE_VOLUME_SIMD=sse2
 (the SSE2 marcher instead of the AVX2 one), and reports the largest pixel difference between them.

@@ -5,7 +5,8 @@
 #   1. apt packages (Debian's VTK 9.1 SDK, GoogleTest, PoCL OpenCL, Xvfb)
 #   2. .venv made from /usr/bin/python3 with --system-site-packages, so it
 #      sees Debian's VTK; pyvista 0.46.5 installed without pip's `vtk` wheel
-#   3. CMake configure + build into build/
+#   3. CMake configure + build into build/, with the benchmark drivers
+#      (MATRIXTREE_BENCHMARKS=ON: bench/*.py run them)
 #   4. a .pth file so .venv finds python/ (matrixtree) and build/python
 #      (matrixtree_vtk) without PYTHONPATH
 set -euo pipefail
@@ -119,7 +120,8 @@ say "venv: VTK $("$VPY" -c 'import vtkmodules.vtkCommonCore as c; print(c.vtkVer
 # ---------------------------------------------------------------------------
 mkdir -p "$BUILD_DIR"
 say "cmake: configure build/ (log: build/configure.log)"
-if ! cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >"$BUILD_DIR/configure.log" 2>&1; then
+if ! cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DMATRIXTREE_BENCHMARKS=ON \
+    >"$BUILD_DIR/configure.log" 2>&1; then
   tail -n 40 "$BUILD_DIR/configure.log" >&2
   die "cmake configure failed"
 fi

@@ -6,25 +6,21 @@ import os
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray, vtkIntArray, vtkPoints
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray, vtkIntArray
 from vtkmodules.vtkCommonDataModel import vtkDataSet, vtkPolyData
 
 from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
 
-_TREES = {"octree": 0, "kdtree": 1}
+from matrixtree._util import check_backend, existing_file, points3, read_by_extension, tree_type, vtk_points
 
 
 def _backend(backend: str) -> int:
-    if backend not in ("cpu", "opencl"):
-        raise ValueError(f"backend must be 'cpu' or 'opencl', got {backend!r}")
-    return vtkMatrixTree.OPENCL if backend == "opencl" else vtkMatrixTree.CPU
+    return vtkMatrixTree.OPENCL if check_backend(backend) == "opencl" else vtkMatrixTree.CPU
 
 
-def _tree_type(tree: str) -> int:
-    try:
-        return _TREES[tree]
-    except KeyError:
-        raise ValueError(f"tree must be one of {sorted(_TREES)}, got {tree!r}") from None
+_MESH_READERS = {".ply": "vtkIOPLY.vtkPLYReader", ".obj": "vtkIOGeometry.vtkOBJReader",
+                 ".stl": "vtkIOGeometry.vtkSTLReader", ".vtp": "vtkIOXML.vtkXMLPolyDataReader",
+                 ".vtk": "vtkIOLegacy.vtkPolyDataReader"}
 
 
 def read_mesh(path: str | os.PathLike) -> vtkPolyData:
@@ -55,26 +51,10 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     >>> mesh.GetNumberOfPolys()
     69451
     """
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileNotFoundError(f"no such mesh file: {path}")
+    path = existing_file(path, "mesh")
     ext = os.path.splitext(path)[1].lower()
-    if ext == ".ply":
-        from vtkmodules.vtkIOPLY import vtkPLYReader as R
-    elif ext == ".obj":
-        from vtkmodules.vtkIOGeometry import vtkOBJReader as R
-    elif ext == ".stl":
-        from vtkmodules.vtkIOGeometry import vtkSTLReader as R
-    elif ext == ".vtp":
-        from vtkmodules.vtkIOXML import vtkXMLPolyDataReader as R
-    elif ext == ".vtk":
-        from vtkmodules.vtkIOLegacy import vtkPolyDataReader as R
-    else:
-        raise ValueError(f"unsupported mesh extension {ext!r} (use .ply, .obj, .stl, .vtp or .vtk)")
-    reader = R()
-    reader.SetFileName(path)
-    reader.Update()
-    out = reader.GetOutput()
+    out = read_by_extension(path, _MESH_READERS,
+                            f"unsupported mesh extension {ext!r} (use .ply, .obj, .stl, .vtp or .vtk)")
     from vtkmodules.vtkFiltersCore import vtkCleanPolyData, vtkTriangleFilter
 
     tri = vtkTriangleFilter()
@@ -113,15 +93,6 @@ def _as_polydata(mesh) -> vtkPolyData:
     if isinstance(mesh, (str, os.PathLike)):
         return read_mesh(mesh)
     raise TypeError(f"expected a vtkPolyData, pyvista mesh or file path, got {type(mesh).__name__}")
-
-
-def _points3(a, name: str) -> np.ndarray:
-    a = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
-    if a.ndim == 1 and a.size == 3:
-        a = a.reshape(1, 3)
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (N, 3), got {a.shape}")
-    return a
 
 
 class MatrixTree:
@@ -175,7 +146,7 @@ class MatrixTree:
             raise ValueError(f"leaf_scale must be > 0, got {leaf_scale!r}")
         self._tree = vtkMatrixTree()
         self._tree.SetDataSet(self.mesh)
-        self._tree.SetTreeType(_tree_type(tree))
+        self._tree.SetTreeType(tree_type(tree))
         self._tree.SetHeight(int(height))
         self._tree.SetBlockSize(int(block_size))
         self._tree.SetExactOverlap(bool(exact))
@@ -243,7 +214,7 @@ class MatrixTree:
             ``level, i, j, k, exists`` per point: the existing leaf containing it (exists = 1)
             or the largest empty node containing it (exists = 0); level -1 outside the tree.
         """
-        p = _points3(points, "points")
+        p = points3(points, "points")
         out = vtkIntArray()
         self._tree.FindLeaves(numpy_to_vtk(p, deep=False), out)
         return vtk_to_numpy(out).reshape(-1, 5).copy()
@@ -263,8 +234,8 @@ class MatrixTree:
         cell : numpy.ndarray, shape (N,)
             Hit cell id of the mesh; -1 where the ray misses.
         """
-        o = _points3(origins, "origins")
-        d = _points3(directions, "directions")
+        o = points3(origins, "origins")
+        d = points3(directions, "directions")
         if o.shape != d.shape:
             raise ValueError(f"origins {o.shape} and directions {d.shape} must have the same shape")
         t = vtkDoubleArray()
@@ -352,7 +323,7 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         rc.SetSAHTraversal(_TRAVERSALS[traversal])
     else:
         rc.SetAcceleratorToMatrixTree()
-        rc.GetTree().SetTreeType(_tree_type(tree))
+        rc.GetTree().SetTreeType(tree_type(tree))
     rc.SetTriangleTest(_TESTS[triangle_test])
     if leaf_scale is not None:
         rc.GetTree().SetLeafScale(float(leaf_scale))
@@ -478,9 +449,7 @@ def time_frames(frames, methods=("octree", "kdtree", "sah-stack"), size=(800, 80
         except ImportError:  # pragma: no cover
             pass
     for fi in it:
-        pts = vtkPoints()
-        pts.SetData(numpy_to_vtk(np.ascontiguousarray(point_sets[fi]), deep=True))
-        work.SetPoints(pts)
+        work.SetPoints(vtk_points(point_sets[fi]))
         work.Modified()
         sah_build = None  # the SAH tree is built by the first SAH row of the frame, shared by the rest
         for m in methods:
@@ -579,7 +548,7 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     if mesh.GetNumberOfCells() == 0:
         raise ValueError("tree_mesh: the data set has no cells (nothing to build a tree over)")
     rep = vtkMatrixTreeRepresentation()
-    rep.SetTreeType(_tree_type(tree))
+    rep.SetTreeType(tree_type(tree))
     rep.SetHeight(int(height))
     rep.SetExactOverlap(bool(exact_overlap))
     if levels is None:

@@ -6,8 +6,9 @@ import os
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
-from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
+
+from matrixtree._util import existing_file, run_reader, vtk_points
 
 # meshio cell type -> (VTK cell type, points per cell)
 _MESHIO_TO_VTK = {"tetra": (10, 4), "hexahedron": (12, 8), "wedge": (13, 6), "pyramid": (14, 5),
@@ -37,21 +38,13 @@ def read_grid(path: str | os.PathLike, volume_only: bool = True) -> vtkUnstructu
     >>> g.GetNumberOfCells()
     14079
     """
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileNotFoundError(f"no such grid file: {path}")
+    path = existing_file(path, "grid")
     ext = os.path.splitext(path)[1].lower()
     if ext == ".vtu":
-        from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
-
-        r = vtkXMLUnstructuredGridReader()
-        r.SetFileName(path)
-        r.Update()
-        return r.GetOutput()
+        return run_reader("vtkIOXML.vtkXMLUnstructuredGridReader", path)
     if ext in (".ex2", ".exo", ".e"):
-        from vtkmodules.vtkFiltersCore import vtkAppendFilter  # noqa: F401
-        from vtkmodules.vtkIOExodus import vtkExodusIIReader
         from vtkmodules.vtkFiltersCore import vtkAppendFilter as Append
+        from vtkmodules.vtkIOExodus import vtkExodusIIReader
 
         r = vtkExodusIIReader()
         r.SetFileName(path)
@@ -110,8 +103,6 @@ def read_grid(path: str | os.PathLike, volume_only: bool = True) -> vtkUnstructu
     cells = vtkCellArray()
     cells.SetData(numpy_to_vtkIdTypeArray(off, deep=True), numpy_to_vtkIdTypeArray(conn, deep=True))
     g = vtkUnstructuredGrid()
-    p = vtkPoints()
-    p.SetData(numpy_to_vtk(pts, deep=True))
-    g.SetPoints(p)
+    g.SetPoints(vtk_points(pts))
     g.SetCells(numpy_to_vtk(types, deep=True, array_type=3), cells)  # 3 = VTK_UNSIGNED_CHAR
     return g

@@ -10,16 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.util.misc import calldata_type
-from vtkmodules.vtkCommonCore import VTK_STRING, vtkDoubleArray, vtkIdTypeArray, vtkPoints
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray
 from vtkmodules.vtkCommonDataModel import vtkDataSet
 
 from matrixtree_vtk import vtkMatrixTreeLocator
 
-__all__ = ["CellLocator", "cached_memory", "release_cached_memory"]
+from matrixtree._util import VtkErrors, check_backend, points3, tree_type, vtk_points
 
-_TREES = {"octree": 0, "kdtree": 1}
-_BACKENDS = ("cpu", "opencl")
+__all__ = ["CellLocator", "cached_memory", "release_cached_memory"]
 
 
 def cached_memory() -> int:
@@ -40,21 +38,6 @@ def cached_memory() -> int:
 def release_cached_memory() -> int:
     """Hands every kept mapping (see ``cached_memory``) back to the system; returns its bytes."""
     return int(vtkMatrixTreeLocator.ReleaseCachedMemory())
-
-
-def _points3(a, name: str) -> np.ndarray:
-    arr = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
-    if arr.ndim == 1 and arr.size == 3:
-        arr = arr.reshape(1, 3)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (n, 3), got {arr.shape}")
-    return arr
-
-
-def _vtk_points(arr: np.ndarray) -> vtkPoints:
-    pts = vtkPoints()
-    pts.SetData(numpy_to_vtk(arr, deep=True))
-    return pts
 
 
 class CellLocator:
@@ -104,15 +87,13 @@ class CellLocator:
                  backend: str = "cpu", device: str | None = None):
         if not isinstance(dataset, vtkDataSet):
             raise TypeError(f"dataset must be a vtkDataSet (or a pyvista mesh), got {type(dataset).__name__}")
-        if tree not in _TREES:
-            raise ValueError(f"tree must be one of {sorted(_TREES)}, got {tree!r}")
-        if backend not in _BACKENDS:
-            raise ValueError(f"backend must be 'cpu' or 'opencl', got {backend!r}")
+        tree_id = tree_type(tree)
+        check_backend(backend)
         if dataset.GetNumberOfCells() == 0:
             raise ValueError("dataset has no cells")
         self.dataset = dataset
         self.vtk_locator = vtkMatrixTreeLocator()
-        self.vtk_locator.SetTreeType(_TREES[tree])
+        self.vtk_locator.SetTreeType(tree_id)
         self.vtk_locator.SetHeight(int(height))
         self.vtk_locator.SetNumberOfThreads(int(threads))
         if backend == "opencl":
@@ -157,28 +138,15 @@ class CellLocator:
         >>> bool(ids[0] >= 0), round(float(w[0].sum()), 12)
         (True, 1.0)
         """
-        p = _points3(points, "points")
+        p = points3(points, "points")
         ids = vtkIdTypeArray()
         pc = vtkDoubleArray() if return_pcoords else None
         w = vtkDoubleArray() if return_weights else None
-        errors: list[str] = []
-
-        @calldata_type(VTK_STRING)
-        def _on_error(_obj, _event, message):  # the locator's vtkErrorMacro text, for the exception
-            lines = [ln.strip() for ln in str(message).strip().splitlines()]
-            if lines and lines[0].startswith("ERROR: In "):  # "ERROR: In file, line N"
-                lines = lines[1:]
-            text = " ".join(ln for ln in lines if ln)
-            errors.append(text.split("): ", 1)[1] if text.startswith("vtk") and "): " in text else text)
-
-        tag = self.vtk_locator.AddObserver("ErrorEvent", _on_error)
-        try:
-            self.vtk_locator.FindCells(_vtk_points(p), ids, pc, w)
-        finally:
-            self.vtk_locator.RemoveObserver(tag)
-        if errors:
+        with VtkErrors(self.vtk_locator) as errors:
+            self.vtk_locator.FindCells(vtk_points(p), ids, pc, w)
+        if errors.messages:
             hint = " [CellLocator: backend='cpu' needs no OpenCL]" if self.backend == "opencl" else ""
-            raise RuntimeError(errors[-1] + hint)
+            raise RuntimeError(errors.last + hint)
         out = [vtk_to_numpy(ids).astype(np.int64, copy=True)]
         if return_pcoords:
             out.append(vtk_to_numpy(pc).reshape(-1, 3).copy())
@@ -222,10 +190,10 @@ class CellLocator:
         >>> bool(abs(x[0, 0] - 0.5) < 1e-2), bool(ids[1] == -1 and np.isinf(t[1]))
         (True, True)
         """
-        o = _points3(origins, "origins")
+        o = points3(origins, "origins")
         if (directions is None) == (ends is None):
             raise ValueError("give exactly one of directions and ends")
-        e = _points3(ends, "ends") if ends is not None else o + float(length) * _points3(directions, "directions")
+        e = points3(ends, "ends") if ends is not None else o + float(length) * points3(directions, "directions")
         if e.shape != o.shape:
             raise ValueError(f"origins {o.shape} and ends/directions {e.shape} differ in shape")
         t, ids, x = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
@@ -259,9 +227,9 @@ class CellLocator:
         >>> bool(np.allclose(cp[0], [0.1, 0.2, 0.0])), float(d2[0])
         (True, 9.0)
         """
-        p = _points3(points, "points")
+        p = points3(points, "points")
         cp, ids, d2 = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
-        self.vtk_locator.FindClosestPoints(_vtk_points(p), cp, ids, d2)
+        self.vtk_locator.FindClosestPoints(vtk_points(p), cp, ids, d2)
         return (vtk_to_numpy(cp).reshape(-1, 3).copy(), vtk_to_numpy(ids).astype(np.int64, copy=True),
                 vtk_to_numpy(d2).copy())
 

@@ -7,11 +7,11 @@ import os
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk
-from vtkmodules.vtkCommonCore import vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 from vtkmodules.vtkFiltersCore import vtkAppendPolyData, vtkTriangleFilter, vtkTubeFilter
-from vtkmodules.vtkFiltersSources import vtkPlaneSource, vtkSphereSource
-from vtkmodules.vtkCommonDataModel import vtkCellArray
+from vtkmodules.vtkFiltersSources import vtkPlaneSource, vtkPolyLineSource, vtkSphereSource
+
+from matrixtree._util import vtk_points
 
 
 def data_dir() -> str:
@@ -43,18 +43,11 @@ def _torus_knot(p: int, q: int, n: int, radius: float, tube: float, sides: int, 
     s = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
     r = radius * (2.0 + np.cos(q * s + phase)) / 3.0
     xyz = np.stack([r * np.cos(p * s), radius * np.sin(q * s + phase) / 3.0 + 1.2, r * np.sin(p * s)], axis=1)
-    pts = vtkPoints()
-    pts.SetData(numpy_to_vtk(np.ascontiguousarray(xyz), deep=True))
-    lines = vtkCellArray()
-    lines.InsertNextCell(n + 1)
-    for i in range(n):
-        lines.InsertCellPoint(i)
-    lines.InsertCellPoint(0)
-    pd = vtkPolyData()
-    pd.SetPoints(pts)
-    pd.SetLines(lines)
+    line = vtkPolyLineSource()  # closed: the last point joins the first
+    line.SetPoints(vtk_points(xyz))
+    line.ClosedOn()
     tf = vtkTubeFilter()
-    tf.SetInputData(pd)
+    tf.SetInputConnection(line.GetOutputPort())
     tf.SetRadius(tube)
     tf.SetNumberOfSides(sides)
     tf.CappingOff()

@@ -12,15 +12,21 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from vtkmodules.util.misc import calldata_type
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import VTK_STRING
 from vtkmodules.vtkCommonDataModel import vtkImageData, vtkPiecewiseFunction
 from vtkmodules.vtkRenderingCore import vtkCamera, vtkColorTransferFunction
 
 from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
 
+from matrixtree._util import VtkErrors, check_backend, existing_file, read_by_extension
+
 __all__ = ["default_transfer_functions", "read_volume", "render_volume", "frame_camera"]
+
+
+_VOLUME_READERS = {".mhd": "vtkIOImage.vtkMetaImageReader", ".mha": "vtkIOImage.vtkMetaImageReader",
+                   ".nii": "vtkIOImage.vtkNIFTIImageReader", ".nii.gz": "vtkIOImage.vtkNIFTIImageReader",
+                   ".slc": "vtkIOImage.vtkSLCReader", ".vti": "vtkIOXML.vtkXMLImageDataReader",
+                   ".vtk": "vtkIOLegacy.vtkStructuredPointsReader"}
 
 
 def read_volume(path: str | os.PathLike) -> vtkImageData:
@@ -51,27 +57,10 @@ def read_volume(path: str | os.PathLike) -> vtkImageData:
     >>> im.GetDimensions()
     (68, 68, 68)
     """
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise FileNotFoundError(f"no such volume file: {path}")
-    low = path.lower()
-    if low.endswith((".mhd", ".mha")):
-        from vtkmodules.vtkIOImage import vtkMetaImageReader as R
-    elif low.endswith((".nii", ".nii.gz")):
-        from vtkmodules.vtkIOImage import vtkNIFTIImageReader as R
-    elif low.endswith(".slc"):
-        from vtkmodules.vtkIOImage import vtkSLCReader as R
-    elif low.endswith(".vti"):
-        from vtkmodules.vtkIOXML import vtkXMLImageDataReader as R
-    elif low.endswith(".vtk"):
-        from vtkmodules.vtkIOLegacy import vtkStructuredPointsReader as R
-    else:
-        raise ValueError(f"unknown volume format: {path}")
-    reader = R()
-    reader.SetFileName(path)
-    reader.Update()
+    path = existing_file(path, "volume")
+    read = read_by_extension(path, _VOLUME_READERS, f"unknown volume format: {path}")
     out = vtkImageData()
-    out.ShallowCopy(reader.GetOutput())
+    out.ShallowCopy(read)
     scalars = out.GetPointData().GetScalars()
     if scalars is None:
         raise ValueError(f"{path} holds no point scalars")
@@ -280,8 +269,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     >>> st["blocks_allocated"] < st["blocks_dense"]
     True
     """
-    if backend not in ("cpu", "opencl"):
-        raise ValueError(f"backend must be 'cpu' or 'opencl', got {backend!r}")
+    check_backend(backend)
     image = _as_image(volume, spacing, origin)
     s = image.GetPointData().GetScalars()
     if image.GetNumberOfPoints() == 0 or s is None:
@@ -321,27 +309,14 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         caster.SetBackendToOpenCL()
         if device is not None:
             caster.SetOpenCLDevice(str(device))
-    errors: list[str] = []
-
-    @calldata_type(VTK_STRING)
-    def _on_error(_obj, _event, message):  # the filter's vtkErrorMacro text, kept for the exception
-        lines = [ln.strip() for ln in str(message).strip().splitlines()]
-        if lines and lines[0].startswith("ERROR: In "):  # "ERROR: In file, line N"
-            lines = lines[1:]
-        text = " ".join(ln for ln in lines if ln)
-        errors.append(text.split("): ", 1)[1] if text.startswith("vtk") and "): " in text else text)
-
-    tag = caster.AddObserver("ErrorEvent", _on_error)
-    try:
+    with VtkErrors(caster) as errors:
         caster.Update()
-    finally:
-        caster.RemoveObserver(tag)
     out = caster.GetOutput().GetPointData().GetArray("RGBAFloat")
     if out is None:
         if backend == "opencl":
-            why = errors[-1] if errors else "no OpenCL device, or a device error"
+            why = errors.last if errors.messages else "no OpenCL device, or a device error"
             raise RuntimeError(f"{why} [render_volume: backend='cpu' needs no OpenCL]")
-        raise ValueError(errors[-1] if errors else "volume rendering failed (see the VTK error above)")
+        raise ValueError(errors.last if errors.messages else "volume rendering failed (see the VTK error above)")
     img = vtk_to_numpy(out).reshape(h, w, 4)[::-1].copy()
     if not return_stats:
         return img

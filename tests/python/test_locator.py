@@ -12,6 +12,8 @@ import matrixtree
 from matrixtree import scenes
 from matrixtree_vtk import vtkMatrixTreeLocator
 
+from seeded import random_points, start_and_direction
+
 CFD = os.path.join(scenes.data_dir(), "cfd")
 GRIDS = ["pipe_flow_tets.vtu", "brick_tets.su2", "brick_pyra.su2", "brick_prism.su2", "brick_hex.su2",
          "disk_out_ref.ex2"]
@@ -24,13 +26,6 @@ def build(cls, ds, **settings):
         getattr(loc, "Set" + k)(v)
     loc.BuildLocator()
     return loc
-
-
-def random_points(ds, n, seed, grow=0.05):
-    b = np.array(ds.GetBounds()).reshape(3, 2)
-    ext = b[:, 1] - b[:, 0]
-    rng = np.random.default_rng(seed)
-    return b[:, 0] - grow * ext + rng.random((n, 3)) * ext * (1 + 2 * grow)
 
 
 def contains(ds, cell_id, p):
@@ -166,8 +161,7 @@ def test_rays_match_vtk_cell_locator(tree, exact):
     gc = vtkGenericCell()
     mismatches = hits = 0
     for _ in range(1500):
-        p1 = b[:, 0] + rng.random(3) * (b[:, 1] - b[:, 0])
-        u = rng.normal(size=3)
+        p1, u = start_and_direction(rng, b)
         p2 = p1 + u / np.linalg.norm(u) * 0.3
         res = []
         for loc in (ours, ref):
@@ -259,8 +253,7 @@ def test_all_hits_are_every_cell_vtk_hits(grid):
     gc = vtkGenericCell()
     total = 0
     for i in range(120):
-        p1 = b[:, 0] + rng.random(3) * (b[:, 1] - b[:, 0])
-        u = rng.normal(size=3)
+        p1, u = start_and_direction(rng, b)
         p2 = p1 + u / np.linalg.norm(u) * diag * (0.05, 0.3)[i % 2]
         pts, ids = vtkPoints(), vtkIdList()
         pts.SetDataTypeToDouble()  # the hit points unrounded

@@ -12,6 +12,8 @@ import matrixtree
 from matrixtree import scenes
 from matrixtree.locator import CellLocator
 
+from seeded import random_points
+
 DATA = scenes.data_dir()
 
 
@@ -20,15 +22,9 @@ def pipe():
     return matrixtree.read_grid(os.path.join(DATA, "cfd", "pipe_flow_tets.vtu"))
 
 
-def box_points(ds, n, seed, grow=0.05):
-    b = np.array(ds.GetBounds()).reshape(3, 2)
-    ext = b[:, 1] - b[:, 0]
-    return b[:, 0] - grow * ext + np.random.default_rng(seed).random((n, 3)) * ext * (1 + 2 * grow)
-
-
 def test_locate_equals_find_cell_and_vtk(pipe):
     loc = CellLocator(pipe, threads=2)
-    p = box_points(pipe, 20000, seed=4)
+    p = random_points(pipe, 20000, seed=4)
     ids, pc, w = loc.locate(p, return_pcoords=True, return_weights=True)
     assert (ids >= 0).sum() > 10000
     # The one-point call, on a subset (a Python loop is slow).
@@ -50,7 +46,7 @@ def test_trace_equals_intersect_with_line():
     mesh = matrixtree.read_mesh(os.path.join(DATA, "meshes", "bunny.ply"))
     loc = CellLocator(mesh, tree="kdtree")
     rng = np.random.default_rng(8)
-    o = box_points(mesh, 2000, seed=8, grow=0.0)
+    o = random_points(mesh, 2000, seed=8, grow=0.0)
     d = rng.normal(size=(2000, 3))
     d *= 0.3 / np.linalg.norm(d, axis=1)[:, None]
     t, ids, x = loc.trace(o, d)
@@ -77,7 +73,7 @@ def test_trace_equals_intersect_with_line():
 def test_closest_points_equal_one_point_calls():
     mesh = matrixtree.read_mesh(os.path.join(DATA, "scenes", "utah_hand", "hand_00.obj"))
     loc = CellLocator(mesh)
-    p = box_points(mesh, 600, seed=3, grow=0.3)
+    p = random_points(mesh, 600, seed=3, grow=0.3)
     cp, ids, d2 = loc.closest_points(p)
     ref = vtkCellLocator()
     ref.SetDataSet(mesh)

@@ -13,6 +13,8 @@ import pytest
 import matrixtree
 from matrixtree import scenes
 
+from seeded import random_points
+
 BUNNY = os.path.join(scenes.data_dir(), "meshes", "bunny.ply")
 
 
@@ -31,6 +33,17 @@ def _opencl_platforms() -> tuple[int, str]:
 
 _N, _WHY = _opencl_platforms()
 needs_device = pytest.mark.skipif(_N == 0, reason=f"no OpenCL device: {_WHY}")
+PIPE = os.path.join(scenes.data_dir(), "cfd", "pipe_flow_tets.vtu")
+
+
+@pytest.mark.parametrize("call", [
+    lambda: matrixtree.MatrixTree(matrixtree.read_mesh(BUNNY), backend="cuda"),
+    lambda: matrixtree.render_volume(np.ones((4, 4, 4), np.float32), size=(8, 8), backend="cuda"),
+    lambda: matrixtree.CellLocator(matrixtree.read_grid(PIPE), backend="cuda"),
+], ids=["MatrixTree", "render_volume", "CellLocator"])
+def test_bad_backend_name_is_a_value_error(call):
+    with pytest.raises(ValueError, match="backend must be 'cpu' or 'opencl'"):
+        call()
 
 
 @pytest.fixture(scope="module")
@@ -38,9 +51,9 @@ def bunny():
     return matrixtree.read_mesh(BUNNY)
 
 
-def test_bad_backend_name_is_a_value_error(bunny):
-    with pytest.raises(ValueError, match="backend must be 'cpu' or 'opencl'"):
-        matrixtree.MatrixTree(bunny, backend="cuda")
+@pytest.fixture(scope="module")
+def pipe():
+    return matrixtree.read_grid(PIPE)
 
 
 @needs_device
@@ -83,11 +96,6 @@ def test_opencl_render_matches_cpu_render(bunny):
 VOLUMES = os.path.join(scenes.data_dir(), "volumes")
 
 
-def test_render_volume_bad_backend_name_is_a_value_error():
-    with pytest.raises(ValueError, match="backend must be 'cpu' or 'opencl'"):
-        matrixtree.render_volume(np.ones((4, 4, 4), np.float32), size=(8, 8), backend="cuda")
-
-
 def test_render_volume_opencl_with_no_matching_device_raises():
     # A selector that matches no device fails the way a machine without OpenCL does (the next
     # test removes the platforms altogether): a RuntimeError that says what to do, no crash.
@@ -96,22 +104,28 @@ def test_render_volume_opencl_with_no_matching_device_raises():
                                  device="no-such-opencl-device-xyz")
 
 
-def test_render_volume_opencl_without_any_platform_raises():
-    # OCL_ICD_VENDORS pointing at an empty folder: the ICD loader finds no platform at all.
+def _opencl_error_without_any_platform(setup: str, call: str, after: str = "") -> str:
+    """Runs ``setup``, ``call`` and ``after`` in a fresh Python whose OCL_ICD_VENDORS is an empty
+    folder, so that the ICD loader finds no OpenCL platform at all. ``call`` must raise a
+    RuntimeError naming the opencl backend, and the process must end normally (no crash);
+    returns what it printed."""
     import subprocess
     import sys
     import tempfile
 
-    code = ("import numpy as np, matrixtree\n"
-            "try:\n"
-            "    matrixtree.render_volume(np.ones((6, 6, 6), np.float32), size=(8, 8), backend='opencl')\n"
-            "except RuntimeError as e:\n"
-            "    print('RuntimeError:', e)\n")
+    code = f"{setup}\ntry:\n    {call}\nexcept RuntimeError as e:\n    print('RuntimeError:', e)\n{after}\n"
     with tempfile.TemporaryDirectory() as empty:
         env = dict(os.environ, OCL_ICD_VENDORS=empty)
         r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "RuntimeError:" in r.stdout and "opencl backend" in r.stdout, r.stdout + r.stderr[-2000:]
+    return r.stdout
+
+
+def test_render_volume_opencl_without_any_platform_raises():
+    _opencl_error_without_any_platform(
+        "import numpy as np, matrixtree",
+        "matrixtree.render_volume(np.ones((6, 6, 6), np.float32), size=(8, 8), backend='opencl')")
 
 
 @needs_device
@@ -145,29 +159,10 @@ def test_render_volume_opencl_equals_cpu_on_float_input():
 
 
 # ----------------------------------------------------------------------------- cell location
-PIPE = os.path.join(scenes.data_dir(), "cfd", "pipe_flow_tets.vtu")
-
-
-@pytest.fixture(scope="module")
-def pipe():
-    return matrixtree.read_grid(PIPE)
-
-
-def _points_in_and_around(ds, n, seed, grow=0.05):
-    b = np.array(ds.GetBounds()).reshape(3, 2)
-    ext = b[:, 1] - b[:, 0]
-    return b[:, 0] - grow * ext + np.random.default_rng(seed).random((n, 3)) * ext * (1 + 2 * grow)
-
-
-def test_cell_locator_bad_backend_name_is_a_value_error(pipe):
-    with pytest.raises(ValueError, match="backend must be 'cpu' or 'opencl'"):
-        matrixtree.CellLocator(pipe, backend="cuda")
-
-
 @needs_device
 @pytest.mark.parametrize("tree", ["octree", "kdtree"])
 def test_cell_locator_opencl_locate_equals_cpu(pipe, tree):
-    p = _points_in_and_around(pipe, 100000, seed=11)
+    p = random_points(pipe, 100000, seed=11)
     # Points on shared faces and at vertices: several cells contain them; the first in the
     # leaf's order must win on both backends.
     conn = pipe.GetCells().GetConnectivityArray()
@@ -198,22 +193,8 @@ def test_cell_locator_opencl_with_no_matching_device_raises(pipe):
 
 
 def test_cell_locator_opencl_without_any_platform_raises():
-    # OCL_ICD_VENDORS pointing at an empty folder: the ICD loader finds no platform at all.
-    import subprocess
-    import sys
-    import tempfile
-
-    code = ("import matrixtree\n"
-            f"g = matrixtree.read_grid({PIPE!r})\n"
-            "loc = matrixtree.CellLocator(g, backend='opencl')\n"
-            "try:\n"
-            "    loc.locate([[0.0, 0.0, 0.0]])\n"
-            "except RuntimeError as e:\n"
-            "    print('RuntimeError:', e)\n"
-            "print('cpu:', matrixtree.CellLocator(g).locate([[0.0, 0.0, 0.0]]).shape)\n")
-    with tempfile.TemporaryDirectory() as empty:
-        env = dict(os.environ, OCL_ICD_VENDORS=empty)
-        r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr[-2000:]
-    assert "RuntimeError:" in r.stdout and "opencl backend" in r.stdout, r.stdout + r.stderr[-2000:]
-    assert "cpu: (1,)" in r.stdout
+    out = _opencl_error_without_any_platform(
+        f"import matrixtree\ng = matrixtree.read_grid({PIPE!r})\nloc = matrixtree.CellLocator(g, backend='opencl')",
+        "loc.locate([[0.0, 0.0, 0.0]])",
+        "print('cpu:', matrixtree.CellLocator(g).locate([[0.0, 0.0, 0.0]]).shape)")
+    assert "cpu: (1,)" in out

@@ -1,0 +1,117 @@
+"""Private helpers of the matrixtree modules: argument checks, numpy to VTK conversion, file
+readers picked by extension, and VTK error messages turned into Python exceptions.
+
+Not public API: the public functions and classes re-export nothing from here.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+
+import numpy as np
+from vtkmodules.util.misc import calldata_type
+from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.vtkCommonCore import VTK_STRING, vtkPoints
+
+TREES = {"octree": 0, "kdtree": 1}
+BACKENDS = ("cpu", "opencl")
+
+
+def tree_type(tree: str) -> int:
+    """The VTK classes' TreeType value of ``"octree"`` or ``"kdtree"``; ValueError otherwise."""
+    try:
+        return TREES[tree]
+    except KeyError:
+        raise ValueError(f"tree must be one of {sorted(TREES)}, got {tree!r}") from None
+
+
+def check_backend(backend: str) -> str:
+    """``backend`` itself if it is ``"cpu"`` or ``"opencl"``; ValueError otherwise."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be 'cpu' or 'opencl', got {backend!r}")
+    return backend
+
+
+def points3(a, name: str) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array of shape (N, 3); a single point becomes (1, 3).
+
+    ValueError, naming the argument ``name``, for any other shape.
+    """
+    arr = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+    if arr.ndim == 1 and arr.size == 3:
+        arr = arr.reshape(1, 3)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (N, 3), got {arr.shape}")
+    return arr
+
+
+def vtk_points(arr: np.ndarray) -> vtkPoints:
+    """A ``vtkPoints`` holding a copy of an (N, 3) array (its dtype kept: float64 stays double)."""
+    pts = vtkPoints()
+    pts.SetData(numpy_to_vtk(np.ascontiguousarray(arr), deep=True))
+    return pts
+
+
+def existing_file(path, kind: str) -> str:
+    """``path`` as a str; FileNotFoundError saying ``no such <kind> file`` if it does not exist."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"no such {kind} file: {path}")
+    return path
+
+
+def run_reader(name: str, path: str):
+    """Run the VTK reader ``name`` (``"module.Class"`` under ``vtkmodules``, imported now) on
+    ``path`` and return its output."""
+    module, cls = name.rsplit(".", 1)
+    reader = getattr(importlib.import_module("vtkmodules." + module), cls)()
+    reader.SetFileName(path)
+    reader.Update()
+    return reader.GetOutput()
+
+
+def read_by_extension(path: str, readers: dict, unsupported: str):
+    """Run the reader that ``readers`` names for the end of ``path`` (see :func:`run_reader`).
+
+    ``readers`` maps lower-case file endings (``".ply"``, ``".nii.gz"``) to reader names; a path
+    with none of them raises ValueError with the message ``unsupported``, before any reading.
+    """
+    low = path.lower()
+    for ending, name in readers.items():
+        if low.endswith(ending):
+            return run_reader(name, path)
+    raise ValueError(unsupported)
+
+
+class VtkErrors:
+    """Collects the ``vtkErrorMacro`` messages one VTK object reports while the block runs.
+
+    ``with VtkErrors(obj) as errors: obj.Update()``; afterwards ``errors.messages`` holds each
+    message without VTK's ``ERROR: In file, line N`` and ``vtkClass (0x...): `` prefixes, and
+    ``errors.last`` the last one (or None). The observer is removed when the block ends.
+    """
+
+    def __init__(self, obj):
+        self.obj = obj
+        self.messages: list[str] = []
+        self._tag = None
+
+    @property
+    def last(self) -> str | None:
+        return self.messages[-1] if self.messages else None
+
+    def __enter__(self) -> "VtkErrors":
+        @calldata_type(VTK_STRING)
+        def on_error(_obj, _event, message):
+            lines = [ln.strip() for ln in str(message).strip().splitlines()]
+            if lines and lines[0].startswith("ERROR: In "):  # "ERROR: In file, line N"
+                lines = lines[1:]
+            text = " ".join(ln for ln in lines if ln)
+            self.messages.append(text.split("): ", 1)[1] if text.startswith("vtk") and "): " in text else text)
+
+        self._tag = self.obj.AddObserver("ErrorEvent", on_error)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.obj.RemoveObserver(self._tag)
