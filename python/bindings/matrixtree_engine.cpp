@@ -292,31 +292,6 @@ class CellLocator {
 
 // ---- surfaces: triangles for rays and renders ---------------------------------------------------
 
-/// The camera and options of a render, from Python values.
-struct RenderSetup {
-  mtree::Camera cam;
-  mtree::RenderOptions opt;
-  mtree::Box scene;
-};
-
-RenderSetup renderSetup(const mtree::TriangleMesh& mesh, int width, int height, const std::vector<double>& eye,
-                        const std::vector<double>& target, const std::vector<double>& up, double viewAngle,
-                        bool shadows, int threads) {
-  if (width < 1 || height < 1 || width > 16384 || height > 16384)
-    throw nb::value_error("the image size must be 1..16384 pixels per side");
-  RenderSetup s;
-  s.cam.eye = vec3(eye, "eye");
-  s.cam.target = vec3(target, "target");
-  s.cam.up = vec3(up, "up");
-  s.cam.fovyDegrees = viewAngle;
-  s.cam.width = width;
-  s.cam.height = height;
-  s.opt.shadows = shadows;
-  s.opt.threads = threads;
-  for (size_t i = 0; i < mesh.numPoints(); ++i) s.scene.extend(mtree::Vec3(&mesh.points()[3 * i]));
-  return s;
-}
-
 /// A render's per-pixel arrays (row 0 at the bottom) and totals.
 nb::dict renderDict(mtree::RenderResult r, const std::vector<int64_t>& cellOfTriangle) {
   const size_t w = size_t(r.width), h = size_t(r.height), npix = w * h;
@@ -335,6 +310,33 @@ nb::dict renderDict(mtree::RenderResult r, const std::vector<int64_t>& cellOfTri
   d["total_node_visits"] = r.stats.nodeVisits;
   d["total_triangle_tests"] = r.stats.primTests;
   return d;
+}
+
+/// Renders the surface through `tracer` (mtree::render: primary rays, one shadow ray per hit).
+template <class Tracer>
+nb::dict renderSurface(const Tracer& tracer, const mtree::TriangulatedSurface& surface, int width, int height,
+                       const std::vector<double>& eye, const std::vector<double>& target,
+                       const std::vector<double>& up, double viewAngle, bool shadows, int threads) {
+  if (width < 1 || height < 1 || width > 16384 || height > 16384)
+    throw nb::value_error("the image size must be 1..16384 pixels per side");
+  mtree::Camera cam;
+  cam.eye = vec3(eye, "eye");
+  cam.target = vec3(target, "target");
+  cam.up = vec3(up, "up");
+  cam.fovyDegrees = viewAngle;
+  cam.width = width;
+  cam.height = height;
+  mtree::RenderOptions opt;
+  opt.shadows = shadows;
+  opt.threads = threads;
+  mtree::RenderResult r;
+  {
+    nb::gil_scoped_release unlocked;
+    mtree::Box scene;
+    for (size_t i = 0; i < surface.mesh.numPoints(); ++i) scene.extend(mtree::Vec3(&surface.mesh.points()[3 * i]));
+    r = mtree::render(tracer, surface.mesh, scene, cam, opt);
+  }
+  return renderDict(std::move(r), surface.cellOfTriangle);
 }
 
 /// First hits of n rays through `tracer`: t (inf on a miss), the polydata cell (-1), and the
@@ -423,14 +425,8 @@ class SurfaceTree {
 
   nb::dict render(int width, int height, const std::vector<double>& eye, const std::vector<double>& target,
                   const std::vector<double>& up, double viewAngle, bool shadows, const std::string& test) const {
-    const RenderSetup s = renderSetup(surface_.mesh, width, height, eye, target, up, viewAngle, shadows, threads_);
     const mtree::MatrixTreeTracer tracer{tree_, surface_.mesh, triangleTest(test)};
-    mtree::RenderResult r;
-    {
-      nb::gil_scoped_release unlocked;
-      r = mtree::render(tracer, surface_.mesh, s.scene, s.cam, s.opt);
-    }
-    return renderDict(std::move(r), surface_.cellOfTriangle);
+    return renderSurface(tracer, surface_, width, height, eye, target, up, viewAngle, shadows, threads_);
   }
 
   nb::dict nodes(int lo, int hi) const { return nodesDict(tree_, lo, hi); }
@@ -471,14 +467,8 @@ class SahTree {
   nb::dict render(int width, int height, const std::vector<double>& eye, const std::vector<double>& target,
                   const std::vector<double>& up, double viewAngle, bool shadows, const std::string& traversal,
                   int shortStack, const std::string& test) const {
-    const RenderSetup s = renderSetup(surface_.mesh, width, height, eye, target, up, viewAngle, shadows, threads_);
     const mtree::SahTracer tracer{tree_, surface_.mesh, sahTraversal(traversal), triangleTest(test), shortStack};
-    mtree::RenderResult r;
-    {
-      nb::gil_scoped_release unlocked;
-      r = mtree::render(tracer, surface_.mesh, s.scene, s.cam, s.opt);
-    }
-    return renderDict(std::move(r), surface_.cellOfTriangle);
+    return renderSurface(tracer, surface_, width, height, eye, target, up, viewAngle, shadows, threads_);
   }
 
   nb::dict stats() const {

@@ -38,6 +38,19 @@ bool segmentCrossesBox(Vec3 p1, Vec3 d, const Box& b, double tMax) {
 
 }  // namespace
 
+/// Runs f(i, scratch) for i in [0, n) on OpenMP threads (one scratch each), in chunks of `chunk`,
+/// on one thread below `serial` items.
+template <class F>
+void CellLocator::forEachQuery(size_t n, int threads, int chunk, int64_t serial, F&& f) const {
+  const int64_t m = static_cast<int64_t>(n);
+#pragma omp parallel num_threads(resolveThreads(threads)) if (m > serial)
+  {
+    Scratch s;
+#pragma omp for schedule(dynamic, chunk)
+    for (int64_t i = 0; i < m; ++i) f(i, s);
+  }
+}
+
 void CellLocator::build(CellSet cells, const CellLocatorOptions& o) {
   *this = CellLocator{};
   const size_t nc = cells.size();
@@ -132,22 +145,17 @@ int64_t CellLocator::findCell(const double x[3], double tol2, double pcoords[3],
 
 void CellLocator::findCells(const double* x, size_t n, double tol2, int64_t* ids, double* pcoords, double* weights,
                             int threads) const {
-  const int64_t m = static_cast<int64_t>(n), w = maxCellPoints_;
-#pragma omp parallel num_threads(resolveThreads(threads)) if (m > 256)
-  {
-    Scratch s;
+  const int64_t w = maxCellPoints_;
+  forEachQuery(n, threads, 512, 256, [&](int64_t i, Scratch& s) {
     double pc[3];
-#pragma omp for schedule(dynamic, 512)
-    for (int64_t i = 0; i < m; ++i) {
-      double* wi = weights ? weights + i * w : nullptr;
-      ids[i] = findCellIn(x + 3 * i, tol2, pc, wi, s);
-      if (ids[i] < 0) {
-        pc[0] = pc[1] = pc[2] = 0;
-        if (wi) std::fill(wi, wi + w, 0.0);
-      }
-      if (pcoords) std::copy(pc, pc + 3, pcoords + 3 * i);
+    double* wi = weights ? weights + i * w : nullptr;
+    ids[i] = findCellIn(x + 3 * i, tol2, pc, wi, s);
+    if (ids[i] < 0) {
+      pc[0] = pc[1] = pc[2] = 0;
+      if (wi) std::fill(wi, wi + w, 0.0);
     }
-  }
+    if (pcoords) std::copy(pc, pc + 3, pcoords + 3 * i);
+  });
 }
 
 bool CellLocator::firstHitIn(Vec3 p1, Vec3 p2, double tol, SegmentHit& hit, Scratch& s) const {
@@ -186,20 +194,14 @@ bool CellLocator::firstHit(Vec3 p1, Vec3 p2, double tol, SegmentHit& hit) const 
 
 void CellLocator::firstHits(const double* p1, const double* p2, size_t n, double tol, double* t, int64_t* ids,
                             double* x, int threads) const {
-  const int64_t m = static_cast<int64_t>(n);
-#pragma omp parallel num_threads(resolveThreads(threads)) if (m > 64)
-  {
-    Scratch s;
-#pragma omp for schedule(dynamic, 128)
-    for (int64_t i = 0; i < m; ++i) {
-      SegmentHit h;
-      const bool found = firstHitIn(Vec3(p1 + 3 * i), Vec3(p2 + 3 * i), tol, h, s);
-      t[i] = found ? h.t : kInf;
-      ids[i] = found ? h.cell : -1;
-      if (x)
-        for (int a = 0; a < 3; ++a) x[3 * i + a] = found ? h.x[a] : kNaN;
-    }
-  }
+  forEachQuery(n, threads, 128, 64, [&](int64_t i, Scratch& s) {
+    SegmentHit h;
+    const bool found = firstHitIn(Vec3(p1 + 3 * i), Vec3(p2 + 3 * i), tol, h, s);
+    t[i] = found ? h.t : kInf;
+    ids[i] = found ? h.cell : -1;
+    if (x)
+      for (int a = 0; a < 3; ++a) x[3 * i + a] = found ? h.x[a] : kNaN;
+  });
 }
 
 void CellLocator::allHits(Vec3 p1, Vec3 p2, double tol, std::vector<SegmentHit>& hits) const {
@@ -281,19 +283,13 @@ int64_t CellLocator::closestPoint(const double x[3], double radius, Vec3& closes
 
 void CellLocator::closestPoints(const double* x, size_t n, double radius, double* closest, int64_t* ids,
                                 double* dist2, int threads) const {
-  const int64_t m = static_cast<int64_t>(n);
-#pragma omp parallel num_threads(resolveThreads(threads)) if (m > 64)
-  {
-    Scratch s;
-#pragma omp for schedule(dynamic, 128)
-    for (int64_t i = 0; i < m; ++i) {
-      Vec3 c;
-      double d2;
-      ids[i] = closestIn(x + 3 * i, radius, c, d2, s);
-      for (int a = 0; a < 3; ++a) closest[3 * i + a] = c[a];
-      if (dist2) dist2[i] = d2;
-    }
-  }
+  forEachQuery(n, threads, 128, 64, [&](int64_t i, Scratch& s) {
+    Vec3 c;
+    double d2;
+    ids[i] = closestIn(x + 3 * i, radius, c, d2, s);
+    for (int a = 0; a < 3; ++a) closest[3 * i + a] = c[a];
+    if (dist2) dist2[i] = d2;
+  });
 }
 
 void CellLocator::cellsWithinBounds(const Box& box, std::vector<int64_t>& out) const {

@@ -110,6 +110,8 @@ class CellLocator {
   struct Scratch {
     std::vector<double> pts, weights;
   };
+  template <class F>
+  void forEachQuery(size_t n, int threads, int chunk, int64_t serial, F&& f) const;
   /// Cell c's points (3 doubles each) in scratch.pts; returns their number.
   int gather(size_t c, Scratch& s) const;
   int64_t findCellIn(const double x[3], double tol2, double pcoords[3], double* weights, Scratch& s) const;
