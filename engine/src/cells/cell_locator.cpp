@@ -10,6 +10,7 @@
 #include <string>
 #include <unordered_set>
 
+#include "mtree/cells/segment_filter.h"
 #include "mtree/core/builder.h"
 #include "mtree/core/parallel.h"
 #include "mtree/core/tree_nodes.h"
@@ -34,6 +35,44 @@ Box paddedBounds(const CellSet& cells, size_t c, double tol) {
 bool segmentCrossesBox(Vec3 p1, Vec3 d, const Box& b, double tMax) {
   double t0 = 0, t1 = tMax;
   return rayBox(p1, d, b, t0, t1);
+}
+
+/// Cell c's points (3 doubles each) into pts (grown as needed); returns their number.
+int gatherPoints(const CellSet& cells, size_t c, std::vector<double>& pts) {
+  const int n = static_cast<int>(cells.numCellPoints(c));
+  if (pts.size() < size_t(3 * n)) pts.resize(size_t(3 * n));
+  const CellSet::PointIds id = cells.cellPointIds(c);
+  for (int k = 0; k < n; ++k) {
+    const Vec3 p = cells.point(id[k]);
+    pts[3 * k] = p.x;
+    pts[3 * k + 1] = p.y;
+    pts[3 * k + 2] = p.z;
+  }
+  return n;
+}
+
+/// Where cell c first meets the segment p1 + t d (frame), if at t <= tMax: its padded bounds
+/// must be crossed; then segment_filter.h's decideCell proves most misses from the points (the
+/// hull of the points, grown by 2 tol and 1e-3 of the cell's extent, holds every point a hit of
+/// cell_geometry.h can report, except on a warped polygon's plane: polygons skip it) and, at
+/// tol 0, gives the crossing of tetrahedra and planar-faced convex cells where it is certain
+/// (away from edges and vertices); the rest go to intersectCellSegment.
+bool cellHit(const CellSet& cells, size_t c, const SegmentFrame& frame, Vec3 p2, double tol, double tMax,
+             std::vector<double>& pts, double& t, Vec3& x) {
+  if (!segmentCrossesBox(frame.p1, frame.d, paddedBounds(cells, c, tol), tMax)) return false;
+  const uint8_t type = cells.type(c);
+  if (type != kPolygon) {
+    double tc;
+    const CellVerdict v = decideCell(frame, cells, c, tMax, tol == 0, tc);
+    if (v == CellVerdict::kMiss) return false;
+    if (v == CellVerdict::kCertain) {
+      t = tc;
+      x = frame.p1 + frame.d * tc;
+      return true;
+    }
+  }
+  const int n = gatherPoints(cells, c, pts);
+  return intersectCellSegment(type, pts.data(), n, frame.p1, p2, tol, t, x);
 }
 
 }  // namespace
@@ -82,8 +121,8 @@ void CellLocator::build(CellSet cells, const CellLocatorOptions& o) {
   opt.maxCandidates = o.maxCandidates > 0 ? std::max(o.maxCandidates, 1.0) : (surface ? 3.0 : 16.0);
   cells.setAxes(CellAxes::Faces);
   MatrixTreeBuilder<CellSet>::build<6>(cells, opt, tree_, &stats_, &leafBoxes_, LeafBoxQuantizer());
-  // The cached bounds served the build; queries compute the few they need from the points.
-  cells.releaseBounds();
+  // The cells' float bounds stay cached (24 bytes per cell): every ray and closest-point
+  // candidate reads them before its points.
   tree_.releaseBuildScratch();
   cells_ = std::move(cells);
   maxCellPoints_ = maxPts;
@@ -93,16 +132,8 @@ void CellLocator::build(CellSet cells, const CellLocatorOptions& o) {
 }
 
 int CellLocator::gather(size_t c, Scratch& s) const {
-  const int n = static_cast<int>(cells_.numCellPoints(c));
-  if (s.pts.size() < size_t(3 * n)) s.pts.resize(size_t(3 * n));
+  const int n = gatherPoints(cells_, c, s.pts);
   if (s.weights.size() < size_t(std::max(n, maxCellPoints_))) s.weights.resize(size_t(std::max(n, maxCellPoints_)));
-  const CellSet::PointIds id = cells_.cellPointIds(c);
-  for (int k = 0; k < n; ++k) {
-    const Vec3 p = cells_.point(id[k]);
-    s.pts[3 * k] = p.x;
-    s.pts[3 * k + 1] = p.y;
-    s.pts[3 * k + 2] = p.z;
-  }
   return n;
 }
 
@@ -164,17 +195,16 @@ bool CellLocator::firstHitIn(Vec3 p1, Vec3 p2, double tol, SegmentHit& hit, Scra
   const Vec3 d = p2 - p1;
   if (!isFinite(p1) || !isFinite(p2) || !(tol >= 0) || (d.x == 0 && d.y == 0 && d.z == 0)) return false;
   RayMailbox tested;
+  const SegmentFrame frame(p1, p2, tol);
   tree_.traverseRay(
       p1, d, 0.0, 1.0,
       [&](const uint32_t* prims, uint32_t count, double, double tExit) {
         for (uint32_t k = 0; k < count; ++k) {
           const uint32_t c = prims[k];
-          if (tested.seen(c) || !segmentCrossesBox(p1, d, paddedBounds(cells_, c, tol), std::min(hit.t, 1.0))) continue;
-          const int np = gather(c, s);
           double t;
           Vec3 x;
-          if (intersectCellSegment(cells_.type(c), s.pts.data(), np, p1, p2, tol, t, x) &&
-              (t < hit.t || (t == hit.t && int64_t(c) < hit.cell))) {
+          if (tested.seen(c) || !cellHit(cells_, c, frame, p2, tol, std::min(hit.t, 1.0), s.pts, t, x)) continue;
+          if (t < hit.t || (t == hit.t && int64_t(c) < hit.cell)) {
             hit.t = t;
             hit.cell = c;
             hit.x = x;
@@ -210,16 +240,15 @@ void CellLocator::allHits(Vec3 p1, Vec3 p2, double tol, std::vector<SegmentHit>&
   if (!isFinite(p1) || !isFinite(p2) || !(tol >= 0) || (d.x == 0 && d.y == 0 && d.z == 0)) return;
   Scratch s;
   std::unordered_set<uint32_t> seen;
+  const SegmentFrame frame(p1, p2, tol);
   tree_.traverseRay(
       p1, d, 0.0, 1.0,
       [&](const uint32_t* prims, uint32_t count, double, double) {
         for (uint32_t k = 0; k < count; ++k) {
           const uint32_t c = prims[k];
-          if (!seen.insert(c).second || !segmentCrossesBox(p1, d, paddedBounds(cells_, c, tol), 1.0)) continue;
-          const int np = gather(c, s);
           SegmentHit h;
           h.cell = c;
-          if (intersectCellSegment(cells_.type(c), s.pts.data(), np, p1, p2, tol, h.t, h.x)) hits.push_back(h);
+          if (seen.insert(c).second && cellHit(cells_, c, frame, p2, tol, 1.0, s.pts, h.t, h.x)) hits.push_back(h);
         }
         return false;
       },

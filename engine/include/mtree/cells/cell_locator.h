@@ -69,7 +69,8 @@ class CellLocator {
   int maxCellDimension() const { return maxDim_; }
   double leafScaleUsed() const { return leafScale_; }
   double maxCandidatesUsed() const { return maxCandidates_; }
-  /// Bytes held: the tree, the cell copy and the quantized leaf boxes (6 per reference).
+  /// Bytes held: the tree, the cell copy with its cached float bounds (24 bytes per cell) and the
+  /// quantized leaf boxes (6 per reference).
   size_t bytes() const { return tree_.bytes() + cells_.bytes() + leafBoxes_.size(); }
 
   /// FindCell: the first cell of x's leaf, in ascending id order, that contains x (a 3-D cell:
@@ -102,7 +103,9 @@ class CellLocator {
 
   /// FindCellsWithinBounds: every cell whose bounds meet the box, ascending ids.
   void cellsWithinBounds(const Box& box, std::vector<int64_t>& out) const;
-  /// FindCellsAlongLine: every cell whose bounds, padded by tol, the segment crosses, ascending.
+  /// FindCellsAlongLine: every cell whose bounds, padded by tol, the segment crosses, ascending
+  /// (with exactOverlap, among the cells of the leaves the segment crosses: a cell whose box
+  /// meets the segment where the cell itself does not reach may be left out).
   void cellsAlongSegment(Vec3 p1, Vec3 p2, double tol, std::vector<int64_t>& out) const;
 
  private:
