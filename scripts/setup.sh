@@ -6,9 +6,12 @@
 #   2. .venv made from /usr/bin/python3 with --system-site-packages, so it
 #      sees Debian's VTK; pyvista 0.46.5 installed without pip's `vtk` wheel
 #   3. CMake configure + build into build/, with the benchmark drivers
-#      (MATRIXTREE_BENCHMARKS=ON: bench/*.py run them)
-#   4. a .pth file so .venv finds python/ (matrixtree) and build/python
-#      (matrixtree_vtk) without PYTHONPATH
+#      (MATRIXTREE_BENCHMARKS=ON: bench/*.py run them), and the engine's own
+#      Python extension (python/bindings, what `pip install .` builds) into
+#      build/engine-python/
+#   4. a .pth file so .venv finds python/ (matrixtree), build/python
+#      (matrixtree_vtk) and build/engine-python/python (matrixtree_engine)
+#      without PYTHONPATH
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -79,15 +82,15 @@ fi
 venv_ready() {
   "$VPY" - "$PYVISTA_VERSION" <<'PY' 2>/dev/null
 import sys
-import meshio, pytest, tqdm, pyvista, embreex
+import meshio, pytest, tqdm, pyvista, embreex, nanobind
 assert pyvista.__version__ == sys.argv[1], pyvista.__version__
 PY
 }
 
 if venv_ready; then
-  say "pip: pytest meshio tqdm embreex pyvista==$PYVISTA_VERSION already importable"
+  say "pip: pytest meshio tqdm embreex nanobind pyvista==$PYVISTA_VERSION already importable"
 else
-  say "pip: installing pytest meshio tqdm embreex pyvista==$PYVISTA_VERSION (without the vtk wheel)"
+  say "pip: installing pytest meshio tqdm embreex nanobind pyvista==$PYVISTA_VERSION (without the vtk wheel)"
   export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_NO_INPUT=1
   # Keep Debian's numpy: a pip numpy in .venv would shadow the one that
   # Debian's VTK (numpy_interface, numpy_support) was packaged with.
@@ -97,7 +100,7 @@ else
   # pyvista's own dependencies except `vtk` (from its wheel metadata:
   # matplotlib, numpy, pillow, pooch, scooby, typing-extensions, vtk).
   "$VPY" -m pip install -q -c "$constraints" \
-    pytest meshio tqdm embreex \
+    pytest meshio tqdm embreex nanobind \
     'matplotlib>=3.0.1' pillow pooch 'scooby>=0.5.1' 'typing-extensions>=4.10'
   "$VPY" -m pip install -q --no-deps "pyvista==$PYVISTA_VERSION"
   venv_ready || die "pip install finished but the packages do not import"
@@ -140,6 +143,18 @@ WRAPPED_DIR="$BUILD_DIR/python"
 [[ -f "$WRAPPED_DIR/matrixtree_vtk/__init__.py" ]] \
   || die "matrixtree_vtk not found under $WRAPPED_DIR"
 
+# The engine-only extension (no VTK), built for .venv's Python so that the tests can compare it
+# with the VTK module; `pip install .` builds the same CMake entry for pip users.
+ENGINE_DIR="$BUILD_DIR/engine-python"
+mkdir -p "$ENGINE_DIR"
+say "cmake: engine extension build/engine-python (log: build/engine-python/build.log)"
+if ! { cmake -S "$ROOT/python/bindings" -B "$ENGINE_DIR" -DCMAKE_BUILD_TYPE=Release \
+         -DPython_EXECUTABLE="$VPY" -Dnanobind_DIR="$("$VPY" -m nanobind --cmake_dir)" \
+       && cmake --build "$ENGINE_DIR" -j"$(nproc)"; } >"$ENGINE_DIR/build.log" 2>&1; then
+  grep -E 'error|Error' "$ENGINE_DIR/build.log" | head -n 40 >&2 || true
+  die "engine extension build failed, see build/engine-python/build.log"
+fi
+
 # ---------------------------------------------------------------------------
 # 4. Python package and .pth
 # ---------------------------------------------------------------------------
@@ -162,12 +177,12 @@ fi
 
 SITE_PACKAGES="$("$VPY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
 PTH="$SITE_PACKAGES/matrixtree.pth"
-pth_text="$(printf '%s\n%s' "$ROOT/python" "$WRAPPED_DIR")"
+pth_text="$(printf '%s\n%s\n%s' "$ROOT/python" "$WRAPPED_DIR" "$ENGINE_DIR/python")"
 if [[ ! -f "$PTH" || "$(cat "$PTH")" != "$pth_text" ]]; then
   printf '%s\n' "$pth_text" >"$PTH"
   say "python: wrote $PTH"
 fi
 
-"$VPY" -c 'import matrixtree_vtk, matrixtree; print(matrixtree.__version__)' >/dev/null \
-  || die ".venv cannot import matrixtree_vtk / matrixtree"
+"$VPY" -c 'import matrixtree_vtk, matrixtree_engine, matrixtree; print(matrixtree.__version__)' >/dev/null \
+  || die ".venv cannot import matrixtree_vtk / matrixtree_engine / matrixtree"
 say "ok: .venv/bin/python imports matrixtree $("$VPY" -c 'import matrixtree; print(matrixtree.__version__)') (took $((SECONDS - T0)) s)"

@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Set up (idempotent), then run the C++ tests (ctest) and the Python tests
-# (pytest in .venv). Exits non-zero if setup or either test suite fails.
+# Set up (idempotent), then run the C++ tests (ctest), the Python tests
+# (pytest in .venv), and the Python tests that need no VTK C++ classes in an
+# isolated pip environment (build/venv-pip: the newest pip `vtk` and `pyvista`,
+# the package installed with `pip install .`). Exits non-zero if setup or any
+# stage fails.
 set -uo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -28,11 +31,34 @@ T2=$SECONDS
 pytest_rc=${PIPESTATUS[0]}
 T_PYTEST=$((SECONDS - T2))
 
+# What a pyvista user has: a venv without system site packages (pip's VTK and Debian's must
+# never meet in one process), the newest `vtk` and `pyvista` wheels, and this package built by
+# `pip install .` (the engine extension; no VTK C++ SDK). The CMake build folder is kept in
+# build/pip-build, so a rerun recompiles only what changed. Needs PyPI.
+PIP_VENV=build/venv-pip
+PIP_TESTS=(tests/python/test_engine.py)
+echo "[test] pip environment ($PIP_VENV): newest vtk + pyvista, pip install ."
+T3=$SECONDS
+pip_stage() {
+  [[ -x "$PIP_VENV/bin/python" ]] || /usr/bin/python3 -m venv "$PIP_VENV" || return 1
+  local pip=("$PIP_VENV/bin/python" -m pip -q --disable-pip-version-check)
+  "${pip[@]}" install --upgrade vtk pyvista pytest || return 1
+  "${pip[@]}" install --config-settings=build-dir=build/pip-build . || return 1
+  "$PIP_VENV/bin/python" -c 'import vtk, pyvista, matrixtree_engine
+print(f"[test] pip environment: vtk {vtk.vtkVersion.GetVTKVersion()}, pyvista {pyvista.__version__}, "
+      f"matrixtree_engine {matrixtree_engine.__version__} from {matrixtree_engine.__file__}")' || return 1
+  "$PIP_VENV/bin/python" -m pytest -q -p no:cacheprovider "${PIP_TESTS[@]}"
+}
+pip_stage 2>&1 | tee build/pytest-pip.log
+pip_rc=${PIPESTATUS[0]}
+T_PIP=$((SECONDS - T3))
+
 verdict() { if [[ "$1" -eq 0 ]]; then echo "PASS"; else echo "FAIL (exit $1)"; fi; }
 echo
 echo "================ summary ================"
 echo "setup : ok (${T_SETUP} s)"
 echo "ctest : $(verdict "$ctest_rc") (${T_CTEST} s) - $(grep -E 'tests passed|tests failed' build/ctest.log | tail -n 1)"
 echo "pytest: $(verdict "$pytest_rc") (${T_PYTEST} s) - $(grep -E '(passed|failed|error|no tests ran)' build/pytest.log | tail -n 1)"
+echo "pip   : $(verdict "$pip_rc") (${T_PIP} s) - $(grep -oE 'vtk [0-9.]+, pyvista [0-9.]+' build/pytest-pip.log | tail -n 1); $(grep -E '(passed|failed|error|no tests ran)' build/pytest-pip.log | tail -n 1)"
 
-[[ "$ctest_rc" -eq 0 && "$pytest_rc" -eq 0 ]]
+[[ "$ctest_rc" -eq 0 && "$pytest_rc" -eq 0 && "$pip_rc" -eq 0 ]]

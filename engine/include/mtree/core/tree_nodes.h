@@ -1,0 +1,53 @@
+// The nodes of a matrix tree as a list: what a picture of the tree (the Python package's
+// tree_mesh, vtkMatrixTreeLocator::GenerateNodes) shows for each node.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "mtree/core/matrix_tree.h"
+
+namespace mtree {
+
+/// Calls f(cc) for every existing child cc of node c of level l < height (the next level
+/// splits each axis a into 2^(logDim(l + 1, a) - logDim(l, a)) parts).
+template <class F>
+void forEachChild(const MatrixTree& t, int l, const int c[3], F&& f) {
+  int s[3];
+  for (int a = 0; a < 3; ++a) s[a] = t.logDim(l + 1, a) - t.logDim(l, a);
+  for (int dz = 0; dz < (1 << s[2]); ++dz)
+    for (int dy = 0; dy < (1 << s[1]); ++dy)
+      for (int dx = 0; dx < (1 << s[0]); ++dx) {
+        const int cc[3] = {(c[0] << s[0]) + dx, (c[1] << s[1]) + dy, (c[2] << s[2]) + dz};
+        if (t.nodeExists(l + 1, cc)) f(cc);
+      }
+}
+
+/// Squared distance from x to the box (0 inside).
+inline double boxDistance2(Vec3 x, const Box& b) {
+  double d2 = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double d = std::max({b.lo[a] - x[a], 0.0, x[a] - b.hi[a]});
+    d2 += d * d;
+  }
+  return d2;
+}
+
+struct TreeNodeInfo {
+  int level = 0;
+  int c[3] = {0, 0, 0};
+  /// For an inner node, the fraction of its children that exist; 1 for a leaf.
+  double occupancy = 1;
+  /// Distinct primitives referenced by the leaves below the node (for a leaf, its candidates).
+  uint64_t primitives = 0;
+};
+
+/// The existing nodes of levels lo..hi (clamped to 0..height; hi < 0 means the leaves), level by
+/// level from lo, each level in the order of its nodes' linear index (x fastest). Empty for an
+/// empty tree. The distinct primitives per node come from the (node, primitive) pairs of the
+/// leaves, carried up one level at a time with each node replaced by its parent and repeats
+/// removed: O(R log R) per level for R references.
+std::vector<TreeNodeInfo> treeNodes(const MatrixTree& tree, int lo, int hi);
+
+}  // namespace mtree

@@ -1,0 +1,217 @@
+"""The engine extension (matrixtree_engine, what ``pip install .`` builds) against the VTK module
+(matrixtree_vtk, built against Debian's VTK): both paths must give the same answers.
+
+Runs in the project's .venv, where both are built (skipped where the VTK module is not, e.g. in
+the isolated pip environment: pip's VTK and Debian's must never load in one process). Both paths
+build the same tree (same options, same automatic height) and scan the same candidates in the
+same order; the VTK module decides the cells VTK's own classes decide, the engine decides them
+with VTK's rules in its own arithmetic (mtree/cells/cell_geometry.h).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matrixtree_vtk")
+engine = pytest.importorskip("matrixtree_engine")
+
+import matrixtree  # noqa: E402
+from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
+from vtkmodules.vtkCommonDataModel import vtkPolyData, vtkUnstructuredGrid  # noqa: E402
+from vtkmodules.vtkFiltersCore import vtkTriangleFilter  # noqa: E402
+from vtkmodules.vtkFiltersGeometry import vtkDataSetSurfaceFilter  # noqa: E402
+
+from test_engine import closest_on_triangles  # noqa: E402
+
+DATA = matrixtree.scenes.data_dir()
+
+
+def need(path):
+    if not os.path.exists(path):
+        pytest.skip(f"{path} not found (shared data)")
+    return path
+
+
+def cell_arrays(ds):
+    """points, offsets, connectivity and types of a grid or a polygon-only surface."""
+    pts = vtk_to_numpy(ds.GetPoints().GetData()).astype(np.float64)
+    if isinstance(ds, vtkUnstructuredGrid):
+        ca = ds.GetCells()
+        types = vtk_to_numpy(ds.GetCellTypesArray()).astype(np.uint8)
+    else:
+        assert isinstance(ds, vtkPolyData) and ds.GetNumberOfCells() == ds.GetNumberOfPolys()
+        ca = ds.GetPolys()
+    off = vtk_to_numpy(ca.GetOffsetsArray()).astype(np.int64)
+    conn = vtk_to_numpy(ca.GetConnectivityArray()).astype(np.int64)
+    if not isinstance(ds, vtkUnstructuredGrid):
+        size = np.diff(off)
+        types = np.where(size == 3, 5, np.where(size == 4, 9, 7)).astype(np.uint8)
+    return pts, off, conn, types
+
+
+def both_locators(ds, **kw):
+    return engine.CellLocator(*cell_arrays(ds), **kw), matrixtree.CellLocator(ds, **kw)
+
+
+def random_points(ds, n, seed, grow=0.05):
+    b = np.array(ds.GetBounds()).reshape(3, 2)
+    pad = grow * (b[:, 1] - b[:, 0])
+    return np.random.default_rng(seed).uniform(b[:, 0] - pad, b[:, 1] + pad, (n, 3))
+
+
+GRIDS = ["cfd/brick_tets.su2", "cfd/brick_hex.su2", "cfd/brick_prism.su2", "cfd/brick_pyra.su2",
+         "cfd/pipe_flow_tets.vtu"]
+
+
+@pytest.fixture(scope="module", params=GRIDS)
+def grid(request):
+    return matrixtree.read_grid(need(os.path.join(DATA, request.param)))
+
+
+def test_locate_gives_the_vtk_modules_cells_and_weights(grid):
+    eng, ref = both_locators(grid)
+    assert eng.stats()["height"] == ref.vtk_locator.GetTreeHeight()
+    assert eng.stats()["references"] == ref.vtk_locator.GetNumberOfReferences()
+    x = random_points(grid, 20000, seed=7)
+    ids, pc, w = eng.find_cells(x, pcoords=True, weights=True)
+    rids, rpc, rw = ref.locate(x, return_pcoords=True, return_weights=True)
+    assert (ids >= 0).sum() > 1000
+    same = ids == rids
+    # The engine decides the points VTK's arithmetic leaves uncertain (within ~1e-9 of a cell's
+    # acceptance limit) itself; there it may pick the neighbour. Elsewhere: the same cell.
+    assert same.mean() > 0.9995, f"{(~same).sum()} points differ"
+    np.testing.assert_allclose(pc[same], rpc[same], atol=1e-9)
+    np.testing.assert_allclose(w[same], rw[same][:, :w.shape[1]], atol=1e-9)
+    for i in np.flatnonzero(~same):  # a differing answer is a cell that contains the point too
+        assert ids[i] >= 0 and rids[i] >= 0, (i, ids[i], rids[i])
+
+
+def test_segments_and_closest_points_match_on_a_grid(grid):
+    eng, ref = both_locators(grid)
+    p1 = random_points(grid, 300, seed=8, grow=0.3)
+    p2 = random_points(grid, 300, seed=9, grow=0.3)
+    t, ids, x = eng.first_hits(p1, p2)
+    rt, rids, rx = ref.trace(p1, ends=p2)
+    np.testing.assert_array_equal(ids >= 0, rids >= 0)
+    hit = ids >= 0
+    np.testing.assert_allclose(t[hit], rt[hit], atol=1e-9)
+    np.testing.assert_allclose(x[hit], rx[hit], atol=1e-9 * np.abs(rx[hit]).max())
+    # A segment starting inside a cell first leaves it through a face it shares with the next
+    # cell: both meet the segment at the same t, and each path names one of them.
+    for i in np.flatnonzero(hit & (ids != rids)):
+        for c in (ids[i], rids[i]):
+            b = [0.0] * 6
+            grid.GetCellBounds(int(c), b)
+            b = np.array(b).reshape(3, 2)
+            tol = 1e-9 * np.abs(b).max()
+            assert np.all((x[i] >= b[:, 0] - tol) & (x[i] <= b[:, 1] + tol)), (i, c)
+    q = random_points(grid, 300, seed=10, grow=0.5)
+    cp, cid, d2 = eng.closest_points(q)
+    rcp, rcid, rd2 = ref.closest_points(q)
+    inside = rd2 == 0
+    np.testing.assert_array_equal(d2[inside], 0)
+    # Outside, the closest point is on the grid's boundary: the exact distance is the nearest of
+    # its faces' triangles. The engine's is exact for every cell with planar faces; VTK's wedges
+    # and pyramids clamp pcoords into a box, which may land off the cell or short of its nearest
+    # point, so the VTK module is the reference for tetrahedra and hexahedra only.
+    surf = vtkDataSetSurfaceFilter()
+    surf.SetInputData(grid)
+    tri = vtkTriangleFilter()
+    tri.SetInputConnection(surf.GetOutputPort())
+    tri.Update()
+    spts, soff, sconn, _ = cell_arrays(tri.GetOutput())
+    faces = spts[sconn.reshape(-1, 3)]
+    exact = np.array([((closest_on_triangles(p[None], faces[:, 0], faces[:, 1], faces[:, 2])[0] - p) ** 2)
+                      .sum(-1).min() for p in q[~inside]])
+    np.testing.assert_allclose(d2[~inside], exact, rtol=1e-9, atol=1e-15)
+    if set(np.unique(vtk_to_numpy(grid.GetCellTypesArray()))) <= {10, 12}:
+        np.testing.assert_allclose(d2[~inside], rd2[~inside], rtol=1e-6, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def bunny():
+    return matrixtree.read_mesh(need(os.path.join(DATA, "meshes", "bunny.ply")))
+
+
+def test_surface_locator_matches_on_the_bunny(bunny):
+    eng, ref = both_locators(bunny)
+    assert eng.stats()["height"] == ref.vtk_locator.GetTreeHeight()
+    q = random_points(bunny, 2000, seed=11, grow=0.2)
+    cp, cid, d2 = eng.closest_points(q)
+    rcp, rcid, rd2 = ref.closest_points(q)
+    np.testing.assert_allclose(d2, rd2, rtol=1e-9, atol=1e-18)
+    np.testing.assert_allclose(cp, rcp, atol=1e-9)
+    # Equal distances (the closest point a shared vertex or edge) may name either cell: the
+    # engine's cell holds its closest point.
+    pts, off, conn, _ = cell_arrays(bunny)
+    for i in np.flatnonzero(cid != rcid):
+        tri = pts[conn[off[cid[i]]:off[cid[i] + 1]]]
+        assert np.allclose(min(np.linalg.norm(tri - cp[i], axis=1)), 0, atol=1e-9) or \
+            abs(np.linalg.det(np.vstack([tri[1] - tri[0], tri[2] - tri[0], cp[i] - tri[0]]))) < 1e-12
+    p1 = random_points(bunny, 2000, seed=12, grow=0.5)
+    p2 = random_points(bunny, 2000, seed=13, grow=0.5)
+    t, ids, x = eng.first_hits(p1, p2)
+    rt, rids, rx = ref.trace(p1, ends=p2)
+    np.testing.assert_array_equal(ids, rids)
+    np.testing.assert_allclose(t[ids >= 0], rt[rids >= 0], rtol=1e-12)
+
+
+def test_surface_tree_rays_and_render_equal_the_vtk_modules(bunny):
+    pts, off, conn, _ = cell_arrays(bunny)
+    empty = np.zeros(0, np.int64)
+    st = engine.SurfaceTree(pts, off, conn, empty, empty, 0, tree="kdtree")
+    mt = matrixtree.MatrixTree(bunny, tree="kdtree")
+    assert st.stats()["height"] == mt.stats()["height"]
+    assert st.stats()["references"] == mt.stats()["references"]
+    rng = np.random.default_rng(14)
+    b = np.array(bunny.GetBounds()).reshape(3, 2)
+    o = rng.uniform(b[:, 0], b[:, 1], (3000, 3)) + rng.normal(size=(3000, 3)) * 0.1
+    d = rng.normal(size=(3000, 3))
+    t, cells, visits, tests = st.intersect(o, d)
+    rt, rcells = mt.intersect(o, d)
+    np.testing.assert_array_equal(cells, rcells)
+    np.testing.assert_array_equal(t, rt)
+    assert visits == mt.last_query_counters["node_visits"] and tests == mt.last_query_counters["triangle_tests"]
+    cam = [(0.1, 0.25, 0.45), (-0.02, 0.1, 0.0), (0.0, 1.0, 0.0), 30.0]
+    img = st.render(96, 64, eye=cam[0], target=cam[1], up=cam[2], view_angle=cam[3])
+    ref = matrixtree.render(bunny, size=(96, 64), tree="kdtree", camera=cam, leaf_scale=2.0)
+    np.testing.assert_array_equal(img["rgb"][::-1], ref["rgb"])
+    np.testing.assert_array_equal(img["node_visits"][::-1], ref["node_visits"])
+    assert img["hits"] == ref["hits"] > 0
+
+
+def test_tree_nodes_equal_tree_mesh(bunny):
+    pts, off, conn, types = cell_arrays(bunny)
+    nodes = engine.CellLocator(pts, off, conn, types).nodes()
+    boxes = matrixtree.tree_mesh(bunny)
+    np.testing.assert_array_equal(nodes["level"], boxes.cell_data["level"])
+    np.testing.assert_array_equal(nodes["count"], boxes.cell_data["cell_count"])
+    np.testing.assert_allclose(nodes["occupancy"], boxes.cell_data["occupancy"])
+    corners = boxes.points.reshape(-1, 8, 3)
+    np.testing.assert_allclose(nodes["lo"], corners.min(axis=1))
+    np.testing.assert_allclose(nodes["hi"], corners.max(axis=1))
+
+
+def test_volume_render_equals_the_vtk_modules():
+    im = matrixtree.read_volume(need(os.path.join(DATA, "volumes", "ironProt.vtk")))
+    ctf, otf = matrixtree.default_transfer_functions(im)
+    scalars = vtk_to_numpy(im.GetPointData().GetScalars())
+    lo, hi = float(scalars.min()), float(scalars.max())
+    n = 4096  # vtkMatrixTreeVolumeRayCaster's default TableSize
+    rgb, alpha = np.zeros(3 * n, np.float32), np.zeros(n, np.float32)
+    ctf.GetTable(lo, hi, n, rgb)
+    otf.GetTable(lo, hi, n, alpha)
+    table = np.ascontiguousarray(np.column_stack([rgb.reshape(n, 3), alpha]), np.float32)
+    spacing = np.array(im.GetSpacing())
+    vol = engine.Volume(np.ascontiguousarray(scalars), list(im.GetDimensions()), table, lo, hi,
+                        unit_distance=float(spacing.mean()))
+    cam = matrixtree.frame_camera(im)
+    img, st = vol.render(80, 60, position=cam.GetPosition(), focal_point=cam.GetFocalPoint(), view_up=cam.GetViewUp(),
+                         view_angle=cam.GetViewAngle(), origin=im.GetOrigin(), spacing=im.GetSpacing(),
+                         sample_distance=0.5 * spacing.min())
+    ref = matrixtree.render_volume(im, size=(80, 60), camera=cam, color=ctf, opacity=otf)
+    np.testing.assert_array_equal(img[::-1], ref)
+    assert img[..., 3].max() > 0.1
