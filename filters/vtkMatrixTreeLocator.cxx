@@ -24,6 +24,7 @@
 #include "mtree/core/builder.h"
 #include "mtree/cells/cell_eval.h"
 #include "mtree/cells/cells.h"
+#include "mtree/cells/leaf_boxes.h"
 #include "mtree/cells/segment_filter.h"
 #include "mtree/vtk91/face_hit.h"
 #include "mtree/device/opencl.h"

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "mtree/cells/leaf_boxes.h"
 #include "mtree/core/builder.h"
 #include "mtree/cells/cells.h"
 #include "test_util.h"
