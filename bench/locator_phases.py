@@ -3,8 +3,7 @@
 
     .venv/bin/python bench/locator_phases.py [--grid FILE] [--meshes] [--all] [--repeats N]
                                              [--build-dir DIR] [--threads T] [--locator NAME]
-                                             [--sort radix|counting|both] [--stat median|min]
-                                             [--json OUT]
+                                             [--stat median|min] [--json OUT]
 
 With no --grid it runs every CFD grid in ../shared/data/cfd (--meshes: every surface mesh in
 ../shared/data/meshes instead, --all: both). A --grid that is a surface (.ply, .obj, .stl, .vtp)
@@ -45,8 +44,6 @@ def parse() -> argparse.Namespace:
                    choices=("matrix-octree", "matrix-kdtree", "matrix-octree-exact"))
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--build-dir", default=None)
-    p.add_argument("--sort", choices=("radix", "counting", "both", "default"), default="default",
-                   help="locator build sort (default: the locator's default)")
     p.add_argument("--threads", type=int, default=0,
                    help="SetNumberOfThreads of the matrix locators (default 0: the locator's rule)")
     p.add_argument("--static-threads", type=int, default=0,
@@ -103,8 +100,6 @@ def main() -> int:
     folders = ["cfd", "meshes"] if a.all else (["meshes"] if a.meshes else ["cfd"])
     paths = a.grid or sorted(p for f in folders for p in glob.glob(os.path.join(scenes.data_dir(), f, "*.*"))
                              if not p.endswith(".txt"))
-    sorts = {"default": [None], "radix": ["radix"], "counting": ["counting"],
-             "both": ["radix", "counting"]}[a.sort]
     configs = [("matrix-octree", 0, False), ("matrix-kdtree", 1, False), ("matrix-octree-exact", 0, True)]
     if a.locator:
         configs = [c for c in configs if c[0] in a.locator]
@@ -130,34 +125,31 @@ def main() -> int:
         static_ms = stat([timed(build_static) for _ in range(a.repeats)])
         st_bytes = static_bytes(ds, st)
         for name, kind, exact in configs:
-            for sort in sorts:
-                loc = vtkMatrixTreeLocator()
-                loc.SetDataSet(ds)
-                loc.SetTreeType(kind)
-                loc.SetExactOverlap(exact)
-                loc.SetNumberOfThreads(a.threads)
-                if sort is not None:
-                    loc.SetBuildSort(loc.RADIX if sort == "radix" else loc.COUNTING)
-                phases: dict[str, list] = {}
-                calls = []
-                for _ in range(a.repeats):
-                    loc.FreeSearchStructure()
-                    loc.Modified()
-                    calls.append(timed(loc.BuildLocator))
-                    for item in loc.GetBuildPhases().split(";"):
-                        key, ms = item.strip().rsplit(" ", 1)
-                        phases.setdefault(key, []).append(float(ms))
-                row = {"grid": os.path.basename(path), "cells": ds.GetNumberOfCells(), "locator": name,
-                       "strategy": sort or "default", "load1": round(load, 2),
-                       "static_threads": vtkSMPTools.GetEstimatedNumberOfThreads(),
-                       "height": loc.GetTreeHeight(), "references": loc.GetNumberOfReferences(),
-                       "refs_per_cell": loc.GetNumberOfReferences() / max(1, ds.GetNumberOfCells()),
-                       "bytes": loc.GetMemorySize(), "static_bytes": st_bytes,
-                       "bytes_ratio": loc.GetMemorySize() / st_bytes, "static_ms": static_ms,
-                       "build_ms": stat(calls)}
-                row["ratio_vs_static"] = row["build_ms"] / static_ms
-                row.update({k: stat(v) for k, v in phases.items()})
-                rows.append(row)
+            loc = vtkMatrixTreeLocator()
+            loc.SetDataSet(ds)
+            loc.SetTreeType(kind)
+            loc.SetExactOverlap(exact)
+            loc.SetNumberOfThreads(a.threads)
+            phases: dict[str, list] = {}
+            calls = []
+            for _ in range(a.repeats):
+                loc.FreeSearchStructure()
+                loc.Modified()
+                calls.append(timed(loc.BuildLocator))
+                for item in loc.GetBuildPhases().split(";"):
+                    key, ms = item.strip().rsplit(" ", 1)
+                    phases.setdefault(key, []).append(float(ms))
+            row = {"grid": os.path.basename(path), "cells": ds.GetNumberOfCells(), "locator": name,
+                   "load1": round(load, 2),
+                   "static_threads": vtkSMPTools.GetEstimatedNumberOfThreads(),
+                   "height": loc.GetTreeHeight(), "references": loc.GetNumberOfReferences(),
+                   "refs_per_cell": loc.GetNumberOfReferences() / max(1, ds.GetNumberOfCells()),
+                   "bytes": loc.GetMemorySize(), "static_bytes": st_bytes,
+                   "bytes_ratio": loc.GetMemorySize() / st_bytes, "static_ms": static_ms,
+                   "build_ms": stat(calls)}
+            row["ratio_vs_static"] = row["build_ms"] / static_ms
+            row.update({k: stat(v) for k, v in phases.items()})
+            rows.append(row)
     print_rows(rows, a.json)
     return 0
 

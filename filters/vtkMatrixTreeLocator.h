@@ -12,13 +12,12 @@
  *
  * Answers are VTK's: candidate cells are evaluated with the cell's own EvaluatePosition /
  * IntersectWithLine, with the usual tolerance semantics, so results match vtkCellLocator and
- * vtkStaticCellLocator on the same data (FindCell repeats VTK's EvaluatePosition arithmetic
- * for the linear volume cells itself and asks VTK where it cannot be sure: see
- * EngineCellEvaluation).
+ * vtkStaticCellLocator on the same data. Where the engine repeats VTK 9.1's arithmetic
+ * (FindCell on the linear volume cells, the first-hit ray query's triangle and face tests) it
+ * gives VTK's bits and asks VTK wherever a different rounding could change the answer.
  *
  * Settings: TreeType (OCTREE default, KDTREE), Height (0 = chosen from the cells' sizes),
- * BlockSize (8), NumberOfThreads for the build (0 = all), BuildSort (COUNTING, or the paper's
- * RADIX: same tree). Superclass settings used:
+ * BlockSize (8), NumberOfThreads for the build (0 = all). Superclass settings used:
  * UseExistingSearchStructure (keep the tree when the data set changes: the queries then answer
  * for the cells the build saw, whose arrays the locator holds; coordinates changed in place in
  * those arrays need a rebuild, since the tree and the one byte per hexahedron, wedge or pyramid
@@ -70,7 +69,8 @@ class vtkPoints;
 class vtkGenericCell;
 class vtkPolyData;
 class vtkUnstructuredGrid;
-struct vtkMatrixTreeLocatorInternals;
+class vtkMatrixTreeLocatorProcessor;
+struct vtkMatrixTreeLocatorTuning;
 
 class MATRIXTREEFILTERS_EXPORT vtkMatrixTreeLocator : public vtkAbstractCellLocator
 {
@@ -125,27 +125,15 @@ public:
 
   ///@{
   /**
-   * Cell/leaf overlap: bounding-box (default off) or exact (on: a separating-axis test per
-   * candidate leaf). Answers are the same either way. The bounding-box build is 13-47% faster
-   * for 0-17% more references, and the queries run at the same speed (within +-5%, median
-   * of six runs of bench/locators.py): each reference's quantized leaf box rejects the extra
-   * candidates as cheaply as the test would have left them out (docs/bench_locators.md,
-   * "Bounding-box overlap by default").
+   * Cell/leaf overlap: the cell's bounding box (default off) or a separating-axis test per
+   * candidate leaf (on: the box axes and the cell's face normals; conservative, never missing an
+   * overlap). Answers are the same either way: each reference's quantized leaf box rejects the
+   * extra candidates of the bounding-box overlap before a cell is read, and that build is the
+   * cheaper (docs/bench_locators.md, "Bounding-box overlap by default").
    */
   vtkSetMacro(ExactOverlap, bool);
   vtkGetMacro(ExactOverlap, bool);
   vtkBooleanMacro(ExactOverlap, bool);
-  ///@}
-
-  ///@{
-  /**
-   * With ExactOverlap: test the cells' face normals only (default off: conservative, a few more
-   * cells per leaf, a much cheaper build) or also the edge x box-axis products (exact for
-   * convex cells). Answers are the same either way.
-   */
-  vtkSetMacro(FullSeparatingAxes, bool);
-  vtkGetMacro(FullSeparatingAxes, bool);
-  vtkBooleanMacro(FullSeparatingAxes, bool);
   ///@}
 
   ///@{
@@ -161,58 +149,6 @@ public:
    */
   vtkSetClampMacro(NumberOfThreads, int, 0, 4096);
   vtkGetMacro(NumberOfThreads, int);
-  ///@}
-
-  enum BuildSorts
-  {
-    RADIX = 0,
-    COUNTING = 1
-  };
-
-  ///@{
-  /**
-   * How the build groups the (leaf, cell) references by leaf; the tree, the answers and
-   * GetMemorySize() are the same either way, for any NumberOfThreads.
-   * - COUNTING (default): once the leaf blocks are allocated, count the references per leaf,
-   *   scan, scatter the cell ids with per-leaf cursors and sort each leaf's few ids; the
-   *   quantized leaf boxes are written at the scatter, where the cell's bounds are in hand.
-   *   Build phases "leaf counts", "leaf scan", "scatter", "leaf order".
-   * - RADIX: the paper's §5.1 (pairs at scanned offsets, a stable radix sort by leaf, ranges
-   *   from neighbouring keys), then a pass over the leaves that fetches every cell's bounds
-   *   again for the leaf boxes. Phases "scan", "pairs", "sort", "offsets", "refdata".
-   * Changing it rebuilds the tree on the next query.
-   */
-  vtkSetClampMacro(BuildSort, int, RADIX, COUNTING);
-  vtkGetMacro(BuildSort, int);
-  void SetBuildSortToRadix() { this->SetBuildSort(RADIX); }
-  void SetBuildSortToCounting() { this->SetBuildSort(COUNTING); }
-  const char* GetBuildSortAsString() const { return this->BuildSort == RADIX ? "radix" : "counting"; }
-  ///@}
-
-  enum CellStorages
-  {
-    CELLS_AUTOMATIC = 0,
-    CELLS_IN_PLACE = 1,
-    CELLS_COPIED = 2
-  };
-
-  ///@{
-  /**
-   * Where the engine reads the cells' point ids and types, for unstructured grids and
-   * polygon-only polydata whose points are a float or double array (other data sets are always
-   * copied):
-   * - CELLS_IN_PLACE: from the data set's own arrays (vtkCellArray's 32- or 64-bit offsets and
-   *   connectivity, the grid's types), kept referenced: no bytes held, but 64-bit ids are twice
-   *   the cache footprint of a 32-bit copy (FindCell 3-9% slower on hexahedra and wedges,
-   *   13-21% on tetrahedra and pyramids, measured on brick_*.su2).
-   * - CELLS_COPIED: a 32-bit copy of the point ids (4 bytes per id; types not kept when all
-   *   cells have one type).
-   * - CELLS_AUTOMATIC (default): in place when the arrays are 32-bit or the cells have more than
-   *   5 points on average (hexahedra, wedges: where the copy costs most), else copied.
-   * Changing it rebuilds the tree on the next query; the tree and the answers are the same.
-   */
-  vtkSetClampMacro(CellStorage, int, CELLS_AUTOMATIC, CELLS_COPIED);
-  vtkGetMacro(CellStorage, int);
   ///@}
 
   enum Backends
@@ -262,38 +198,17 @@ public:
   const char* GetLastFindCellsPhases();
   ///@}
 
+#ifndef __VTK_WRAP__
   ///@{
   /**
-   * How FindCell (and FindCells on the CPU) evaluates its candidate cells. On (default): the
-   * linear volume cells (tetrahedron, voxel, hexahedron, wedge, pyramid) are evaluated by the
-   * engine (mtree/cells/cell_eval.h), which repeats VTK 9.1's EvaluatePosition operation for
-   * operation, so the cell ids, pcoords and weights are VTK's, bit for bit; where a different
-   * rounding could change the answer (a point within 1e-9 of the cell's tolerance boundary, a
-   * Newton step at the convergence threshold, a degenerate cell, a NaN) the cell goes to VTK's
-   * EvaluatePosition, as do all other types. Only a cell that contains the point (or that VTK
-   * is asked about) is filled into the vtkGenericCell; after a miss its contents are
-   * unspecified, as before. Off: every candidate is filled and handed to VTK's
-   * EvaluatePosition (the reference the tests compare with). A query setting: it does not mark
-   * the locator modified, so changing it never rebuilds the tree.
+   * The alternative implementations of the same answers, for tests and benchmarks (C++ only;
+   * see vtkMatrixTreeLocatorTuning.h). A change of a build field (BuildSort, CellStorage)
+   * rebuilds the tree on the next query; the query fields apply from the next query on.
    */
-  void SetEngineCellEvaluation(bool on) { this->EngineCellEvaluation = on; }
-  vtkGetMacro(EngineCellEvaluation, bool);
-  vtkBooleanMacro(EngineCellEvaluation, bool);
+  void SetTuning(const vtkMatrixTreeLocatorTuning& tuning);
+  const vtkMatrixTreeLocatorTuning& GetTuning() const;
   ///@}
-
-  ///@{
-  /**
-   * Whether the ray queries (IntersectWithLine, FindCellsAlongLine) walk the tree by its step
-   * table where the tree has one (MatrixTree::hasStepTable(): surfaces, whose leaf blocks are
-   * mostly empty cells): one byte per step for the node the ray is in, instead of classifying
-   * the cell from the occupancy masks. The same nodes and the same answers either way; on
-   * (default) is faster (docs/bench_locators.md, "The step table"). Off is for comparing the
-   * two walks. A query setting: it does not mark the locator modified.
-   */
-  void SetRayStepTable(bool on);
-  vtkGetMacro(RayStepTable, bool);
-  vtkBooleanMacro(RayStepTable, bool);
-  ///@}
+#endif
 
   // ---- vtkLocator ----
   /** Builds the tree if the data set or a setting changed since the last build. */
@@ -396,44 +311,27 @@ public:
    * Bytes held: the tree (pointer matrices, blocks, leaf ranges, cell index lists), the
    * engine's copy of the cells where there is one (points unless they are a float or double
    * array; 32-bit connectivity, 32-bit offsets unless every cell has the same number of points,
-   * and types unless all cells have one type, when CellStorage copies them; float bounds with
-   * CacheCellBounds on) and the quantized leaf-local cell boxes (6 bytes per reference). The data set's arrays read in place are not
-   * counted; nor are the build's work arrays the tree keeps for the next build, nor the freed
+   * and types unless all cells have one type, where the cells are copied, see
+   * vtkMatrixTreeLocatorTuning::CellStorage; float bounds with CacheCellBounds on), the
+   * quantized leaf-local cell boxes (6 bytes per reference) and the ray queries' shape byte per
+   * hexahedron, wedge or pyramid. The data set's arrays read in place are not counted; nor are the build's work arrays the tree keeps for the next build, nor the freed
    * large arrays the process keeps for reuse (GetCachedMemorySize).
    */
   vtkIdType GetMemorySize();
   double GetLastBuildTime();
   /**
    * Milliseconds per phase of the last build ("convert 1.2; cellset 0.8; setup ...; release
-   * ...; total ..."; the tree phases depend on BuildSort, see there; "release" frees the cell
-   * bounds and the build's work arrays).
+   * ...; total ..."; the tree phases depend on vtkMatrixTreeLocatorTuning::BuildSort; "release"
+   * frees the cell bounds and the build's work arrays).
    */
   const char* GetBuildPhases();
   ///@}
 
-  /** Copies the settings (not the tree), Backend and OpenCLDevice included, of another locator. */
-  void CopySettings(vtkMatrixTreeLocator* other);
-
-  ///@{
   /**
-   * Query statistics, for diagnosing what a query costs: counters summed over every locator and
-   * thread since the last ResetQueryStatistics(). FindCell: "findcell_queries", and per scan of
-   * a leaf "findcell_leaf_scans", "findcell_references" (the leaf's), "findcell_box_passes"
-   * (references whose quantized box holds the point), "findcell_evaluations" (cells tested
-   * exactly), "findcell_found". IntersectWithLine (first hit): "ray_queries", "ray_steps" and
-   * "ray_node_visits" (the walk's, as MatrixTree::traverseRay counts them), "ray_leaves",
-   * "ray_references", "ray_candidates" (after the leaf's box filter), "ray_cell_tests" (with
-   * "ray_mailbox_repeats", cells met again in a later leaf and skipped), "ray_proved_misses", "ray_certain_hits", "ray_vtk_calls",
-   * "ray_hits". Kept only in a build configured with -DMATRIXTREE_QUERY_STATS=ON (one relaxed
-   * atomic add per event, too slow for timing); otherwise QueryStatisticsEnabled() is false
-   * and GetNumberOfQueryStatistics() 0.
+   * Copies the settings (not the tree), Backend, OpenCLDevice and the tuning included, of
+   * another locator.
    */
-  static bool QueryStatisticsEnabled();
-  static int GetNumberOfQueryStatistics();
-  static const char* GetQueryStatisticName(int i);
-  static vtkTypeUInt64 GetQueryStatistic(int i);
-  static void ResetQueryStatistics();
-  ///@}
+  void CopySettings(vtkMatrixTreeLocator* other);
 
   ///@{
   /**
@@ -460,20 +358,15 @@ protected:
   int Height = 0;
   int BlockSize = 8;
   bool ExactOverlap = false;
-  bool FullSeparatingAxes = false;
   double LeafScale = 0.0;
   double MaxCandidates = 0.0;
   int NumberOfThreads = 0;
-  int BuildSort = COUNTING;
-  int CellStorage = CELLS_AUTOMATIC;
   int Backend = CPU;
   char* OpenCLDevice = nullptr;
   vtkIdType NumberOfOpenCLUploads = 0;
   vtkIdType LastNumberOfHostResumes = 0;
   vtkIdType LastNumberOfUnconfirmedCells = 0;
-  bool EngineCellEvaluation = true;
-  bool RayStepTable = true;
-  vtkMatrixTreeLocatorInternals* Internals;
+  vtkMatrixTreeLocatorProcessor* Processor;
 
 private:
   vtkMatrixTreeLocator(const vtkMatrixTreeLocator&) = delete;

@@ -4,9 +4,9 @@
 //
 // A and B: "static" (vtkStaticCellLocator with VTK's defaults) or vtkMatrixTreeLocator settings,
 // comma-separated, applied in order to a default locator ("default" or "" for none):
-//   octree | kdtree, height=H, leaf_scale=S, max_candidates=C, exact=0|1, full_axes=0|1,
-//   block=B, sort=radix|counting, cells=auto|in_place|copied, engine_eval=0|1, step_table=0|1,
-//   threads=T
+//   octree | kdtree, height=H, leaf_scale=S, max_candidates=C, exact=0|1, block=B, threads=T,
+// and the fields of vtkMatrixTreeLocatorTuning: sort=radix|counting, cells=auto|in_place|copied,
+//   engine_eval=0|1, step_table=0|1
 // e.g. `locator_ab lucy.vtp default leaf_scale=6`.
 //
 // Why: on this kind of shared machine a locator's speed drifts by tens of percent within a
@@ -29,6 +29,7 @@
 // Prints a table; OUT.json (optional) gets one object per measure.
 #include "locator_bench_common.h"
 #include "vtkMatrixTreeLocator.h"
+#include "vtkMatrixTreeLocatorTuning.h"
 
 #include "vtkAbstractCellLocator.h"
 #include "vtkDataSet.h"
@@ -59,6 +60,7 @@ vtkSmartPointer<vtkAbstractCellLocator> MakeLocator(const std::string& config)
     return vtkSmartPointer<vtkStaticCellLocator>::New();
   }
   auto loc = vtkSmartPointer<vtkMatrixTreeLocator>::New();
+  vtkMatrixTreeLocatorTuning tuning;
   std::stringstream list(config == "default" ? std::string() : config);
   std::string item;
   while (std::getline(list, item, ','))
@@ -87,25 +89,24 @@ vtkSmartPointer<vtkAbstractCellLocator> MakeLocator(const std::string& config)
       loc->SetMaxCandidates(number());
     else if (key == "exact")
       loc->SetExactOverlap(number() != 0);
-    else if (key == "full_axes")
-      loc->SetFullSeparatingAxes(number() != 0);
     else if (key == "block")
       loc->SetBlockSize(static_cast<int>(number()));
     else if (key == "threads")
       loc->SetNumberOfThreads(static_cast<int>(number()));
     else if (key == "engine_eval")
-      loc->SetEngineCellEvaluation(number() != 0);
+      tuning.EngineCellEvaluation = number() != 0;
     else if (key == "step_table")
-      loc->SetRayStepTable(number() != 0);
+      tuning.RayStepTable = number() != 0;
     else if (key == "sort" && (val == "radix" || val == "counting"))
-      loc->SetBuildSort(val == "radix" ? vtkMatrixTreeLocator::RADIX : vtkMatrixTreeLocator::COUNTING);
+      tuning.BuildSort = val == "radix" ? vtkMatrixTreeLocatorTuning::RADIX : vtkMatrixTreeLocatorTuning::COUNTING;
     else if (key == "cells" && (val == "auto" || val == "in_place" || val == "copied"))
-      loc->SetCellStorage(val == "auto" ? vtkMatrixTreeLocator::CELLS_AUTOMATIC
-          : val == "in_place"           ? vtkMatrixTreeLocator::CELLS_IN_PLACE
-                                        : vtkMatrixTreeLocator::CELLS_COPIED);
+      tuning.CellStorage = val == "auto" ? vtkMatrixTreeLocatorTuning::CELLS_AUTOMATIC
+        : val == "in_place"             ? vtkMatrixTreeLocatorTuning::CELLS_IN_PLACE
+                                        : vtkMatrixTreeLocatorTuning::CELLS_COPIED;
     else
       throw std::invalid_argument("unknown setting '" + item + "'");
   }
+  loc->SetTuning(tuning);
   return loc;
 }
 

@@ -27,6 +27,7 @@
 // matrix-octree's batch, expected 0; -1 without that row).
 #include "locator_bench_common.h"
 #include "vtkMatrixTreeLocator.h"
+#include "vtkMatrixTreeLocatorTuning.h"
 
 #include "vtkCellLocator.h"
 #include "vtkCellTreeLocator.h"
@@ -157,13 +158,13 @@ int main(int argc, char* argv[])
   // Query statistics (a -DMATRIXTREE_QUERY_STATS=ON build) are global counters: each matrix
   // row's share is summed from the counts taken around its own queries.
   auto addStats = [&](Result& res) {
-    if (!res.matrix || !vtkMatrixTreeLocator::QueryStatisticsEnabled())
+    if (!res.matrix || !vtkMatrixTreeLocatorQueryStatistics::Enabled())
       return;
-    const int ns = vtkMatrixTreeLocator::GetNumberOfQueryStatistics();
+    const int ns = vtkMatrixTreeLocatorQueryStatistics::GetNumber();
     res.stats.resize(static_cast<size_t>(ns), 0);
     for (int i = 0; i < ns; ++i)
-      res.stats[static_cast<size_t>(i)] += vtkMatrixTreeLocator::GetQueryStatistic(i);
-    vtkMatrixTreeLocator::ResetQueryStatistics();
+      res.stats[static_cast<size_t>(i)] += vtkMatrixTreeLocatorQueryStatistics::Get(i);
+    vtkMatrixTreeLocatorQueryStatistics::Reset();
   };
   // The points the rebuilds move (point sets only) and a copy of the original ones.
   vtkPointSet* pset = vtkPointSet::SafeDownCast(ds);
@@ -276,7 +277,7 @@ int main(int argc, char* argv[])
     auto* mloc = vtkMatrixTreeLocator::SafeDownCast(loc);
     res.opencl = mloc && mloc->GetBackend() == vtkMatrixTreeLocator::OPENCL;
     res.matrix = mloc != nullptr;
-    vtkMatrixTreeLocator::ResetQueryStatistics();
+    vtkMatrixTreeLocatorQueryStatistics::Reset();
     // Batched FindCells (ids only) with nt host threads: one warm-up call, then best of 3.
     auto runBatch = [&](int nt) {
       mloc->SetNumberOfThreads(nt);
@@ -402,7 +403,7 @@ int main(int argc, char* argv[])
           vtkAbstractCellLocator* loc = locs[li].loc;
           // Warm-up: the next slice's queries (cycling) for at least kWarmSeconds of wall time.
           locbench::WarmUp(kWarmSeconds, whi - wlo, [&](int i) { query(loc, wlo + i, nullptr); });
-          vtkMatrixTreeLocator::ResetQueryStatistics();
+          vtkMatrixTreeLocatorQueryStatistics::Reset();
           const double c0 = ThreadCpuNow(), t0 = Now();
           for (int i = lo; i < hi; ++i)
             query(loc, i, &res.found);
@@ -462,8 +463,8 @@ int main(int argc, char* argv[])
     // all-thread FindCell, and the timed one-thread slices; not the warm-up queries), as
     // totals, to stderr (the JSON rows stay as they are).
     std::fprintf(stderr, "{\"query_stats\": \"%s\"", locs[li].name);
-    for (int i = 0; i < vtkMatrixTreeLocator::GetNumberOfQueryStatistics(); ++i)
-      std::fprintf(stderr, ", \"%s\": %llu", vtkMatrixTreeLocator::GetQueryStatisticName(i),
+    for (int i = 0; i < vtkMatrixTreeLocatorQueryStatistics::GetNumber(); ++i)
+      std::fprintf(stderr, ", \"%s\": %llu", vtkMatrixTreeLocatorQueryStatistics::GetName(i),
         static_cast<unsigned long long>(res.stats[static_cast<size_t>(i)]));
     std::fprintf(stderr, "}\n");
   }

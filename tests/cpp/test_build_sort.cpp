@@ -4,8 +4,8 @@
 //            exact and bounding-box overlap, on real surface meshes and a CFD grid, with the
 //            automatic height and with a low one (long leaves: the sort's std::sort path);
 //   boxes    the per-reference data of build<6> with LeafBoxQuantizer (the locator's quantized
-//            leaf boxes) equals, byte for byte, the gather over the leaves that the locator
-//            used before (ComputeLeafBoxes: floor/ceil on each reference's cached cell bounds);
+//            leaf boxes, leaf_boxes.h) equals, byte for byte, a pass over the leaves with
+//            floor/ceil on each reference's cached cell bounds (the boxes' definition);
 //   pieces   quantizeLeafBox against that formula on edge cases, detail::sortLeaf on long and
 //            short leaves with data, a two-thread build in a team of one, an empty primitive set,
 //            a bad sort value.
@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "mtree/cells/leaf_boxes.h"
 #include "mtree/core/builder.h"
 #include "mtree/cells/cells.h"
 #include "test_util.h"
@@ -67,8 +68,8 @@ std::string name(const BuildOptions& o) {
          " height " + std::to_string(o.height);
 }
 
-/// The locator's quantized leaf boxes as it computed them before they moved into the build: a
-/// pass over the leaves, floor/ceil on each reference's cached (float) cell bounds.
+/// The quantized leaf boxes by their definition (leaf_boxes.h): a pass over the leaves,
+/// floor/ceil on each reference's cached (float) cell bounds padded by 1e-3 of their extent.
 std::vector<uint8_t> gatherLeafBoxes(const MatrixTree& tree, const CellSet& cells) {
   const mtree::LargeVector<uint32_t>& prims = tree.primitiveIndices();
   std::vector<uint8_t> out(prims.size() * 6);
@@ -193,7 +194,7 @@ TEST(BuildSort, ReusedMappingsGiveTheSameTree) {
   mtree::releaseCachedMemory();
 }
 
-/// build<6> with LeafBoxQuantizer against the old gather, for both sorts and 1 to 3 threads,
+/// build<6> with LeafBoxQuantizer against gatherLeafBoxes, for both sorts and 1 to 3 threads,
 /// and the tree the same as a plain build's.
 void expectLeafBoxesAsGathered(const CellSet& cells, TreeKind kind, OverlapMode overlap, int height,
                                const std::string& what) {
@@ -309,7 +310,7 @@ TEST(CountMark, PointShortcutGivesTheTestedTreeOnSurfaces) {
 }
 
 TEST(LeafBoxes, QuantizerMatchesTheFloorCeilFormula) {
-  // The formula of the old gather, for one axis set.
+  // gatherLeafBoxes' formula, for one cell and leaf.
   auto reference = [](const mtree::Box& cell, const mtree::Box& lb, uint8_t q[6]) {
     const double pad = 1e-3 * std::max({cell.hi.x - cell.lo.x, cell.hi.y - cell.lo.y, cell.hi.z - cell.lo.z});
     for (int a = 0; a < 3; ++a) {

@@ -1,4 +1,4 @@
-// mtree::evaluateLinearCell (engine/include/mtree/cells/cell_eval.h) against VTK's own
+// mtree::vtk91::evaluateLinearCell (engine/vtk91/include/mtree/vtk91/cell_eval.h) against VTK's own
 // vtkCell::EvaluatePosition, the reference it must reproduce: whenever the engine answers (not
 // kAskVtk), VTK must make the same inside/outside decision, and for an inside answer give the
 // same pcoords and weights, bit for bit (the engine repeats VTK's operations; 1e-12 is the
@@ -35,13 +35,13 @@
 #include <string>
 #include <vector>
 
-#include "mtree/cells/cell_eval.h"
+#include "mtree/vtk91/cell_eval.h"
 #include "test_util.h"
 #include "vtk_grid_util.h"
 
 namespace {
 
-using mtree::PointInCell;
+using mtree::vtk91::PointInCell;
 
 struct Tally {
   long long pairs = 0, inside = 0, outside = 0, ask = 0;
@@ -67,20 +67,20 @@ bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) =
 /// in a build that rounds differently). Returns the SSE2 answer.
 PointInCell evaluateEachIsa(uint8_t type, int n, const double* pts, const double x[3], double pc[3], double* w,
                             const std::string& what) {
-  using mtree::cell_eval::NewtonIsa;
-  mtree::cell_eval::newtonIsa() = NewtonIsa::kSse2;
-  const PointInCell v = mtree::evaluateLinearCell(type, pts, x, pc, w);
-  if (mtree::cell_eval::haveAvx2()) {
+  using mtree::vtk91::cell_eval::NewtonIsa;
+  mtree::vtk91::cell_eval::newtonIsa() = NewtonIsa::kSse2;
+  const PointInCell v = mtree::vtk91::evaluateLinearCell(type, pts, x, pc, w);
+  if (mtree::vtk91::cell_eval::haveAvx2()) {
     double pc2[3] = {-7, -7, -7}, w2[8] = {-7, -7, -7, -7, -7, -7, -7, -7};
-    mtree::cell_eval::newtonIsa() = NewtonIsa::kAvx2;
-    const PointInCell v2 = mtree::evaluateLinearCell(type, pts, x, pc2, w2);
+    mtree::vtk91::cell_eval::newtonIsa() = NewtonIsa::kAvx2;
+    const PointInCell v2 = mtree::vtk91::evaluateLinearCell(type, pts, x, pc2, w2);
     EXPECT_EQ(v, v2) << what << ": SSE2 and AVX2 verdicts differ";
     if (v == PointInCell::kInside && v2 == PointInCell::kInside) {
       for (int i = 0; i < 3; ++i) EXPECT_TRUE(sameBits(pc[i], pc2[i])) << what << ": SSE2 and AVX2 pcoords differ";
       for (int k = 0; k < n; ++k) EXPECT_TRUE(sameBits(w[k], w2[k])) << what << ": SSE2 and AVX2 weights differ";
     }
   }
-  mtree::cell_eval::newtonIsa() = NewtonIsa::kAuto;
+  mtree::vtk91::cell_eval::newtonIsa() = NewtonIsa::kAuto;
   return v;
 }
 
@@ -224,7 +224,7 @@ TEST_P(CellEvalGrid, AgreesWithVtkEvaluatePosition) {
     const vtkIdType c = pick(rng);
     g->GetCell(c, cell);
     const int64_t np = cells.numCellPoints(static_cast<size_t>(c));
-    if (!mtree::cellEvaluable(cells.type(static_cast<size_t>(c)), np)) continue;
+    if (!mtree::vtk91::cellEvaluable(cells.type(static_cast<size_t>(c)), np)) continue;
     ++evaluable;
     // The engine reads its own copy: it must hold VTK's coordinates exactly.
     double pts[24];
@@ -435,10 +435,10 @@ TEST(CellEval, RegularCellsAreDecidedHere) {
       double p[3] = {U(rng), U(rng), U(rng)}, x[3], w[8], pc[3];
       int sub = 0;
       c->EvaluateLocation(sub, p, x, w);
-      EXPECT_EQ(mtree::evaluateLinearCell(static_cast<uint8_t>(sh.type), pts, x, pc, w), PointInCell::kInside)
+      EXPECT_EQ(mtree::vtk91::evaluateLinearCell(static_cast<uint8_t>(sh.type), pts, x, pc, w), PointInCell::kInside)
           << sh.name;
       const double far[3] = {x[0] + 5, x[1], x[2]};
-      EXPECT_EQ(mtree::evaluateLinearCell(static_cast<uint8_t>(sh.type), pts, far, pc, w), PointInCell::kOutside)
+      EXPECT_EQ(mtree::vtk91::evaluateLinearCell(static_cast<uint8_t>(sh.type), pts, far, pc, w), PointInCell::kOutside)
           << sh.name;
     }
   }
@@ -456,7 +456,7 @@ void expectFacesSeparate(const std::vector<double>& pts, const std::vector<std::
       for (int a = 0; a < 3; ++a) x[a] += w[k] * pts[3 * k + a];
     const int f = S::outsideFace(pc.data());
     ASSERT_GE(f, 0) << pc[0] << " " << pc[1] << " " << pc[2];
-    EXPECT_TRUE(mtree::cell_eval::faceSeparates(pts.data(), *mtree::cellTopology(S::kType), f, x, S::kHullMargin, 1e-12))
+    EXPECT_TRUE(mtree::vtk91::cell_eval::faceSeparates(pts.data(), *mtree::cellTopology(S::kType), f, x, S::kHullMargin, 1e-12))
         << "face " << f << " for pcoords " << pc[0] << " " << pc[1] << " " << pc[2];
   }
   const double inside[3] = {0.3, 0.3, 0.3};
@@ -464,7 +464,7 @@ void expectFacesSeparate(const std::vector<double>& pts, const std::vector<std::
 }
 
 TEST(CellEval, FirstStepOutsideFaceIsTheCellsFace) {
-  namespace ce = mtree::cell_eval;
+  namespace ce = mtree::vtk91::cell_eval;
   expectFacesSeparate<ce::Hexahedron>({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1},
                                       {{-0.5, 0.5, 0.5}, {1.5, 0.5, 0.5}, {0.5, -0.5, 0.5}, {0.5, 1.5, 0.5},
                                        {0.5, 0.5, -0.5}, {0.5, 0.5, 1.5}});
@@ -488,12 +488,12 @@ TEST(CellEval, SimdColumnsEqualTheScalarLoop) {
     for (double& v : w) v = U(rng);
     for (double& v : d) v = U(rng);
     double a[4][3], b[4][3];
-    mtree::cell_eval::newtonColumns<8>(pts, w, d, a[0], a[1], a[2], a[3]);
-    mtree::cell_eval::newtonColumnsScalar<8>(pts, w, d, b[0], b[1], b[2], b[3]);
+    mtree::vtk91::cell_eval::newtonColumns<8>(pts, w, d, a[0], a[1], a[2], a[3]);
+    mtree::vtk91::cell_eval::newtonColumnsScalar<8>(pts, w, d, b[0], b[1], b[2], b[3]);
     for (int c = 0; c < 4; ++c)
       for (int j = 0; j < 3; ++j) ASSERT_TRUE(sameBits(a[c][j], b[c][j])) << c << " " << j;
-    mtree::cell_eval::newtonColumns<5>(pts, w, d, a[0], a[1], a[2], a[3]);
-    mtree::cell_eval::newtonColumnsScalar<5>(pts, w, d, b[0], b[1], b[2], b[3]);
+    mtree::vtk91::cell_eval::newtonColumns<5>(pts, w, d, a[0], a[1], a[2], a[3]);
+    mtree::vtk91::cell_eval::newtonColumnsScalar<5>(pts, w, d, b[0], b[1], b[2], b[3]);
     for (int c = 0; c < 4; ++c)
       for (int j = 0; j < 3; ++j) ASSERT_TRUE(sameBits(a[c][j], b[c][j])) << c << " " << j;
   }
@@ -505,10 +505,10 @@ TEST(CellEval, Avx2StepEqualsSse2Step) {
 #ifdef MATRIXTREE_CELL_EVAL_ROUNDING_DIFFERS
   GTEST_SKIP() << "the SSE2 step is contracted to FMA in this build";
 #endif
-  if (!mtree::cell_eval::haveAvx2()) GTEST_SKIP() << "no AVX2 on this processor";
+  if (!mtree::vtk91::cell_eval::haveAvx2()) GTEST_SKIP() << "no AVX2 on this processor";
 #if MTREE_CELL_EVAL_AVX2
-  using mtree::cell_eval::Avx2Step;
-  using mtree::cell_eval::Sse2Step;
+  using mtree::vtk91::cell_eval::Avx2Step;
+  using mtree::vtk91::cell_eval::Sse2Step;
   std::mt19937_64 rng(12);
   std::uniform_real_distribution<double> U(-1, 1), E(-12, 12);
   for (int rep = 0; rep < 2000; ++rep) {
@@ -517,14 +517,14 @@ TEST(CellEval, Avx2StepEqualsSse2Step) {
     for (double& v : x) v = U(rng) * std::pow(10.0, E(rng));
     for (double& v : pc) v = 2 * U(rng);
     double a[4], b[4];
-    Sse2Step::run<mtree::cell_eval::Hexahedron>(pts, x, pc, a);
-    Avx2Step::run<mtree::cell_eval::Hexahedron>(pts, x, pc, b);
+    Sse2Step::run<mtree::vtk91::cell_eval::Hexahedron>(pts, x, pc, a);
+    Avx2Step::run<mtree::vtk91::cell_eval::Hexahedron>(pts, x, pc, b);
     ASSERT_EQ(std::memcmp(a, b, sizeof a), 0) << "hexahedron " << rep;
-    Sse2Step::run<mtree::cell_eval::Wedge>(pts, x, pc, a);
-    Avx2Step::run<mtree::cell_eval::Wedge>(pts, x, pc, b);
+    Sse2Step::run<mtree::vtk91::cell_eval::Wedge>(pts, x, pc, a);
+    Avx2Step::run<mtree::vtk91::cell_eval::Wedge>(pts, x, pc, b);
     ASSERT_EQ(std::memcmp(a, b, sizeof a), 0) << "wedge " << rep;
-    Sse2Step::run<mtree::cell_eval::Pyramid>(pts, x, pc, a);
-    Avx2Step::run<mtree::cell_eval::Pyramid>(pts, x, pc, b);
+    Sse2Step::run<mtree::vtk91::cell_eval::Pyramid>(pts, x, pc, a);
+    Avx2Step::run<mtree::vtk91::cell_eval::Pyramid>(pts, x, pc, b);
     ASSERT_EQ(std::memcmp(a, b, sizeof a), 0) << "pyramid " << rep;
   }
 #endif
@@ -534,9 +534,9 @@ TEST(CellEval, OtherTypesAreLeftToVtk) {
   double pts[24] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, x[3] = {0.2, 0.2, 0}, pc[3], w[8];
   for (uint8_t type : {uint8_t(VTK_TRIANGLE), uint8_t(VTK_QUAD), uint8_t(VTK_POLYGON), uint8_t(VTK_LINE),
                        uint8_t(VTK_QUADRATIC_TETRA), uint8_t(VTK_POLYHEDRON)})
-    EXPECT_EQ(mtree::evaluateLinearCell(type, pts, x, pc, w), PointInCell::kAskVtk) << int(type);
-  EXPECT_FALSE(mtree::cellEvaluable(VTK_HEXAHEDRON, 7));
-  EXPECT_TRUE(mtree::cellEvaluable(VTK_WEDGE, 6));
+    EXPECT_EQ(mtree::vtk91::evaluateLinearCell(type, pts, x, pc, w), PointInCell::kAskVtk) << int(type);
+  EXPECT_FALSE(mtree::vtk91::cellEvaluable(VTK_HEXAHEDRON, 7));
+  EXPECT_TRUE(mtree::vtk91::cellEvaluable(VTK_WEDGE, 6));
 }
 
 }  // namespace

@@ -618,7 +618,7 @@ TEST(SegmentFilter, TetraCertainFaceIsVtks) {
 }
 
 // mtree::vtk91 (vtk_face_hit.h) recomputes VTK 9.1's vtkTriangle and vtkQuad IntersectWithLine at
-// tol 0: wherever it answers, VTK's own call (a fresh cell, as the locator's CertainFaceHit used)
+// tol 0: wherever it answers, VTK's own call (a fresh cell, as vtkMatrixTreeCellBridge::CertainFaceHit uses)
 // must give the same verdict and, on a hit, the same t, x, pcoords and subId to the bit. Random
 // triangles (some thin, some nearly edge-on to the segment) and quads (planar, warped,
 // axis-aligned squares, long rectangles), at scales 1e-9 ... 1e9 and offsets up to 1e8, with

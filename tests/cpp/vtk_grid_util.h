@@ -17,13 +17,14 @@
 
 #include "mtree/cells/cells.h"
 #include "mtree/cells/segment_filter.h"
+#include "mtree/vtk91/cell_faces.h"
 #include "test_util.h"
 
 namespace mtest {
 
 /// How the VTK these tests link splits a quad for IntersectWithLine (segment_filter.h's
 /// QuadSplit), as the locator tells its ray tests.
-constexpr mtree::QuadSplit kVtkQuadSplit = mtree::quadSplitOfVtk(VTK_MAJOR_VERSION, VTK_MINOR_VERSION);
+constexpr mtree::QuadSplit kVtkQuadSplit = mtree::vtk91::quadSplitOfVtk(VTK_MAJOR_VERSION, VTK_MINOR_VERSION);
 
 /// The volume cells of an SU2 mesh (NDIME, NELEM lines "type ids... index", NPOIN lines
 /// "x y z [index]"; markers skipped). SU2 element types are VTK's cell type codes.

@@ -5,7 +5,7 @@ import os
 import numpy as np
 import pytest
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdList, vtkIdTypeArray, vtkPoints, reference
+from vtkmodules.vtkCommonCore import vtkIdList, vtkPoints, reference
 from vtkmodules.vtkCommonDataModel import vtkCellLocator, vtkGenericCell, vtkPolyData
 
 import matrixtree
@@ -322,54 +322,6 @@ def test_stream_tracer_matches_vtk_cell_locator():
     assert np.array_equal(lines["ours"][1], lines["vtk"][1])
 
 
-@pytest.mark.parametrize("grid", ["pipe_flow_tets.vtu", "brick_pyra.su2", "brick_hex.su2"])
-def test_build_sorts_give_the_same_locator(grid):
-    """BuildSort COUNTING (default) and RADIX build the same tree and leaf boxes: same counts,
-    same memory, and FindCells (ids, pcoords, weights) and IntersectWithLine answer the same,
-    with 1 and 2 build threads; the phases name the sort's steps, and a change rebuilds."""
-    ds = matrixtree.read_grid(os.path.join(CFD, grid))
-    pts = vtkPoints()
-    pts.SetData(numpy_to_vtk(random_points(ds, 20000, seed=5), deep=True))
-    answers = []
-    for sort in (vtkMatrixTreeLocator.RADIX, vtkMatrixTreeLocator.COUNTING):
-        for threads in (1, 2):
-            loc = build(vtkMatrixTreeLocator, ds, BuildSort=sort, NumberOfThreads=threads)
-            phases = loc.GetBuildPhases()
-            assert ("refdata" in phases) == (sort == loc.RADIX)
-            assert ("scatter" in phases) == (sort == loc.COUNTING)
-            ids, pc, w = vtkIdTypeArray(), vtkDoubleArray(), vtkDoubleArray()
-            loc.FindCells(pts, ids, pc, w)
-            b = np.array(ds.GetBounds()).reshape(3, 2)
-            t, x = reference(0.0), [0.0] * 3
-            hits = [loc.IntersectWithLine(list(b[:, 0]), list(b[:, 1] - i * 0.01 * (b[:, 1] - b[:, 0])), 0.0, t,
-                                          x, [0.0] * 3, reference(0)) for i in range(20)]
-            answers.append((loc.GetTreeHeight(), loc.GetNumberOfLeaves(), loc.GetNumberOfReferences(),
-                            loc.GetMemorySize(), vtk_to_numpy(ids).tolist(), vtk_to_numpy(pc).tobytes(),
-                            vtk_to_numpy(w).tobytes(), hits))
-    assert all(a == answers[0] for a in answers[1:])
-    assert sum(i >= 0 for i in answers[0][4]) > 1000
-
-
-def test_build_sort_setting():
-    loc = vtkMatrixTreeLocator()
-    assert loc.GetBuildSort() == loc.COUNTING and loc.GetBuildSortAsString() == "counting"
-    loc.SetBuildSortToRadix()
-    assert loc.GetBuildSort() == loc.RADIX and loc.GetBuildSortAsString() == "radix"
-    loc.SetBuildSort(9)  # clamped
-    assert loc.GetBuildSort() == loc.COUNTING
-    other = vtkMatrixTreeLocator()
-    other.SetBuildSortToRadix()
-    loc.CopySettings(other)
-    assert loc.GetBuildSort() == loc.RADIX
-    ds = matrixtree.read_grid(os.path.join(CFD, "brick_hex.su2"))
-    loc.SetDataSet(ds)
-    loc.BuildLocator()
-    t0 = loc.GetBuildTime()
-    loc.SetBuildSortToCounting()
-    loc.BuildLocator()
-    assert loc.GetBuildTime() > t0  # a setting: the next build is a rebuild
-
-
 def cell_bounds(ds):
     """Per-cell (lo, hi) bounds of an unstructured grid, from its points and connectivity."""
     cells = ds.GetCells()
@@ -504,76 +456,3 @@ def test_ray_hit_values_are_vtks_own(grid):
         assert gc2.IntersectWithLine(list(p1), list(p2), 0.0, t2, x2, pc2, sub2)
         assert (float(t), x, pc, int(sub)) == (float(t2), x2, pc2, int(sub2)), (i, list(p1), list(p2), int(cid))
     assert hits > (n // 10 if grid.startswith("meshes/") else n // 2)
-
-
-def test_query_statistics_count_what_the_queries_did():
-    # Off in a default build (no counters compiled in); in a build configured with
-    # -DMATRIXTREE_QUERY_STATS=ON the counters must agree with what the queries returned.
-    names = [vtkMatrixTreeLocator.GetQueryStatisticName(i)
-             for i in range(vtkMatrixTreeLocator.GetNumberOfQueryStatistics())]
-    if not vtkMatrixTreeLocator.QueryStatisticsEnabled():
-        assert names == []
-        assert vtkMatrixTreeLocator.GetQueryStatistic(0) == 0
-        return
-    ds = matrixtree.read_grid(os.path.join(CFD, "brick_tets.su2"))
-    loc = build(vtkMatrixTreeLocator, ds)
-    vtkMatrixTreeLocator.ResetQueryStatistics()
-    gc = vtkGenericCell()
-    pc, w = [0.0] * 3, [0.0] * 8
-    pts = random_points(ds, 2000, seed=5, grow=0.2)
-    found = sum(loc.FindCell(list(p), 0.0, gc, pc, w) >= 0 for p in pts)
-    rng = np.random.default_rng(6)
-    hits = 0
-    for a, b in zip(pts[:500], pts[500:1000] + rng.normal(size=(500, 3))):
-        t, x, pcs, sub, cid = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0), reference(0)
-        hits += loc.IntersectWithLine(list(a), list(b), 0.0, t, x, pcs, sub, cid, gc)
-    s = {n: vtkMatrixTreeLocator.GetQueryStatistic(i) for i, n in enumerate(names)}
-    assert s["findcell_queries"] == len(pts)
-    assert s["findcell_found"] == found > 0
-    assert s["findcell_found"] <= s["findcell_evaluations"] <= s["findcell_box_passes"] <= s["findcell_references"]
-    assert s["findcell_leaf_scans"] <= s["findcell_queries"]
-    assert s["ray_queries"] == 500
-    assert s["ray_hits"] == hits > 0
-    assert s["ray_leaves"] <= s["ray_steps"] <= s["ray_node_visits"]
-    assert s["ray_candidates"] <= s["ray_references"]
-    assert s["ray_proved_misses"] + s["ray_certain_hits"] + s["ray_mailbox_repeats"] <= s["ray_cell_tests"]
-    vtkMatrixTreeLocator.ResetQueryStatistics()
-    assert all(vtkMatrixTreeLocator.GetQueryStatistic(i) == 0 for i in range(len(names)))
-
-
-@pytest.mark.parametrize("mesh_name,tree", [("bunny.ply", 0), ("lucy.ply", 0), ("horse.ply", 1)])
-def test_step_table_walk_gives_the_same_answers(mesh_name, tree):
-    """RayStepTable (on by default) walks a surface's tree by its step table; off, by the
-    occupancy masks. The same first hit (cell, t, x, pcoords, subId) bit for bit, the same sorted
-    hit lists and cells along the segment, for 3000 seeded segments; and switching is a query
-    setting: no rebuild."""
-    mesh = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", mesh_name))
-    loc = build(vtkMatrixTreeLocator, mesh, TreeType=tree)
-    assert loc.GetRayStepTable()
-    built = loc.GetBuildTime()
-    b = np.array(mesh.GetBounds()).reshape(3, 2)
-    rng = np.random.default_rng(11)
-    gc = vtkGenericCell()
-    hits = 0
-    for i in range(3000):
-        p1 = b[:, 0] + rng.random(3) * (b[:, 1] - b[:, 0])
-        u = rng.normal(size=3)
-        if i % 5 == 0:
-            u[rng.integers(0, 3)] = 0.0  # parallel to an axis plane
-        p2 = p1 + u / np.linalg.norm(u) * 0.4 * np.linalg.norm(b[:, 1] - b[:, 0])
-        res = []
-        for on in (True, False):
-            loc.SetRayStepTable(on)
-            t, x, pc, sub, cid = reference(0.0), [0.0] * 3, [0.0] * 3, reference(0), reference(0)
-            ok = loc.IntersectWithLine(list(p1), list(p2), 0.0, t, x, pc, sub, cid, gc)
-            pts, ids, along = vtkPoints(), vtkIdList(), vtkIdList()
-            n = loc.IntersectWithLine(list(p1), list(p2), pts, ids) if i % 10 == 0 else 0
-            if i % 10 == 0:
-                loc.FindCellsAlongLine(list(p1), list(p2), 0.0, along)
-            res.append((ok, float(t), x, pc, int(sub), int(cid), n,
-                        [pts.GetPoint(k) for k in range(n)], [ids.GetId(k) for k in range(ids.GetNumberOfIds())],
-                        [along.GetId(k) for k in range(along.GetNumberOfIds())]))
-        assert res[0] == res[1], f"segment {i}: table {res[0][:6]}, masks {res[1][:6]}"
-        hits += res[0][0]
-    assert hits > 300
-    assert loc.GetBuildTime() == built

@@ -118,26 +118,6 @@ def test_points_read_in_place_or_copied_give_the_same_locator(dtype):
     assert [loc.FindCell(list(x)) for x in probe] == before
 
 
-def same_cells(ds, bits: int, int_points: bool):
-    """A copy of ds with its cell arrays in 32- or 64-bit storage and its points as int32
-    (read through a copy by the locator) or as float64 (read in place, as the cell arrays);
-    ds's coordinates must be integers."""
-    out = ds.NewInstance()
-    out.DeepCopy(ds)
-    arrays = [out.GetCells()] if isinstance(out, vtkUnstructuredGrid) else [out.GetPolys()]
-    for ca in arrays:
-        if bits == 32:
-            ca.ConvertTo32BitStorage()
-        else:
-            ca.ConvertTo64BitStorage()
-        assert ca.IsStorage64Bit() == (bits == 64)
-    pts = vtk_to_numpy(ds.GetPoints().GetData())
-    p = vtkPoints()
-    p.SetData(numpy_to_vtk(pts.astype(np.int32 if int_points else np.float64), deep=True))
-    out.SetPoints(p)
-    return out
-
-
 def answers(loc, ds, seed):
     """FindCells, IntersectSegments (tolerance 0 and > 0), FindClosestPoint and
     FindCellsWithinBounds of loc on seeded probes of ds."""
@@ -185,41 +165,6 @@ def integer_grids():
         out.append(g)
     out.append(as_grid(out[1]))
     return out
-
-
-@pytest.mark.parametrize("which", [0, 1, 2])
-def test_cell_arrays_read_in_place_give_the_copy_paths_answers(which):
-    """The cell arrays read in place (32- and 64-bit vtkCellArray storage; an unstructured grid's
-    types, or a polygon mesh's types from its sizes), copied to 32 bits from float points, and
-    CellStorage's automatic choice, against the copy path of integer points (which copies the
-    cells too): same tree, same answers to every query; in place, the bytes held shrink by at
-    least the copy's 4 bytes per connectivity entry."""
-    ds = integer_grids()[which]
-    ref_ds = same_cells(ds, 64, int_points=True)
-    ref = locator(ref_ds)
-    ref_answers = answers(ref, ref_ds, which)
-    for bits, storage in ((32, vtkMatrixTreeLocator.CELLS_IN_PLACE), (64, vtkMatrixTreeLocator.CELLS_IN_PLACE),
-                          (64, vtkMatrixTreeLocator.CELLS_COPIED), (64, vtkMatrixTreeLocator.CELLS_AUTOMATIC)):
-        v = same_cells(ds, bits, int_points=False)
-        loc = locator(v, CellStorage=storage)
-        assert loc.GetTreeHeight() == ref.GetTreeHeight()
-        assert loc.GetNumberOfLeaves() == ref.GetNumberOfLeaves()
-        assert loc.GetNumberOfReferences() == ref.GetNumberOfReferences()
-        conn = v.GetCells() if isinstance(v, vtkUnstructuredGrid) else v.GetPolys()
-        ids = conn.GetNumberOfConnectivityIds()
-        # Automatic: in place where the cells average more than 5 points (brick_hex), else copied.
-        in_place = storage == vtkMatrixTreeLocator.CELLS_IN_PLACE or (
-            storage == vtkMatrixTreeLocator.CELLS_AUTOMATIC and ids > 5 * conn.GetNumberOfCells())
-        assert (storage == vtkMatrixTreeLocator.CELLS_AUTOMATIC) <= (in_place == (which == 0))
-        if in_place:
-            assert loc.GetMemorySize() <= ref.GetMemorySize() - 4 * ids
-            in_place_bytes = loc.GetMemorySize()
-        else:  # the copy of the ids, not of the points
-            assert in_place_bytes + 4 * ids <= loc.GetMemorySize() < ref.GetMemorySize()
-        got = answers(loc, v, which)
-        assert len(got) == len(ref_answers)
-        for a, b in zip(got, ref_answers):
-            np.testing.assert_array_equal(a, b)
 
 
 def test_viewed_cell_arrays_outlive_set_cells():

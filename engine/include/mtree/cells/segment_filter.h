@@ -38,14 +38,9 @@ namespace mtree {
 /// How vtkQuad::IntersectWithLine splits a quad into the two triangles it tests, which decides
 /// where a warped quad face is hit (a planar one is hit at the same point either way):
 ///   kUnknown     warped faces are left to VTK (the default: a VTK whose split is not known);
-///   kDiagonal02  VTK 9.1: triangles (0, 1, 2) and (2, 3, 0), whatever the quad's shape (checked
-///                by test_segment_filter against the VTK it links).
+///   kDiagonal02  triangles (0, 1, 2) and (2, 3, 0), whatever the quad's shape (VTK 9.1's:
+///                mtree::vtk91::quadSplitOfVtk).
 enum class QuadSplit : uint8_t { kUnknown = 0, kDiagonal02 = 1 };
-
-/// The split of the VTK with this major and minor version, where known (9.1).
-constexpr QuadSplit quadSplitOfVtk(int major, int minor) {
-  return major == 9 && minor == 1 ? QuadSplit::kDiagonal02 : QuadSplit::kUnknown;
-}
 
 /// The segment p1 -> p2 with its frame, set up once per query.
 struct SegmentFrame {

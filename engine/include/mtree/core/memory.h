@@ -47,6 +47,14 @@
 
 namespace mtree {
 
+/// Asks for the cache lines of [begin, end), in 64-byte steps from begin: for data read at a
+/// random place (a leaf's ids and boxes), so that the lines' misses overlap instead of coming
+/// one after another.
+inline void prefetchLines(const void* begin, const void* end) {
+  for (const char *b = static_cast<const char*>(begin), *e = static_cast<const char*>(end); b < e; b += 64)
+    __builtin_prefetch(b);
+}
+
 namespace detail {
 constexpr size_t kHugePage = size_t{2} << 20;
 constexpr size_t kSmallPage = size_t{4} << 10;

@@ -2,9 +2,9 @@
 // recomputed in plain arithmetic with VTK's operations in VTK's order, so that a hit's t, x and
 // pcoords are VTK's bit for bit without a vtkCell, its vtkPoints and their virtual calls.
 //
-// The ray queries use it for the one face of a cell whose hit is already certain (the locator's
-// CertainFaceHit), where VTK's own face test cost 12-28% of a ray on the volume grids, and for
-// a surface's triangles (RecomputedTriangleHit). Only the
+// The ray queries use it for the one face of a cell whose hit is already certain
+// (vtkMatrixTreeCellBridge::CertainFaceHit), where VTK's own face test cost 12-28% of a ray on
+// the volume grids, and for a surface's triangles (vtkMatrixTreeCellBridge::RecomputedTriangleHit). Only the
 // main path is recomputed: the triangle's plane (its normal normalised as vtkTriangle::
 // ComputeNormal does), the line's crossing of it (vtkPlane::IntersectWithLine: parallel when
 // |den| <= 1e-6 |num|), the crossing projected back onto the plane and its two pcoords by

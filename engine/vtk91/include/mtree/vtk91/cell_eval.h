@@ -54,6 +54,7 @@
 #endif
 
 namespace mtree {
+namespace vtk91 {
 
 /// The engine's answer for a point and a cell: VTK's EvaluatePosition returns 1 (kInside) or 0
 /// or -1 (kOutside: the point is not in the cell), or the engine cannot be sure (kAskVtk).
@@ -756,4 +757,5 @@ inline PointInCell evaluateLinearCell(uint8_t type, const double* pts, const dou
   }
 }
 
+}  // namespace vtk91
 }  // namespace mtree
