@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "mtree/cells/cell_locator.h"
+#include "mtree/vtk91/cell_locator.h"
 #include "mtree/core/builder.h"
 #include "mtree/core/memory.h"
 #include "mtree/core/parallel.h"

@@ -1,4 +1,4 @@
-// mtree/cells/cell_geometry.h (the cell tests of the VTK-free cell locator) against VTK's own
+// mtree/vtk91/cell_geometry.h (the cell tests of the VTK-free cell locator) against VTK's own
 // cells, type by type: vtkCell::EvaluatePosition (inside or not, pcoords, weights, closest point)
 // and vtkCell::IntersectWithLine (hit, t). The engine decides alone what VTK's cells decide, with
 // VTK's rules: the same verdicts except for points within round-off of a cell's acceptance limit,
@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "mtree/cells/cell_geometry.h"
+#include "mtree/vtk91/cell_geometry.h"
 
 namespace {
 

@@ -5,7 +5,7 @@ Runs in the project's .venv, where both are built (skipped where the VTK module 
 the isolated pip environment: pip's VTK and Debian's must never load in one process). Both paths
 build the same tree (same options, same automatic height) and scan the same candidates in the
 same order; the VTK module decides the cells VTK's own classes decide, the engine decides them
-with VTK's rules in its own arithmetic (mtree/cells/cell_geometry.h).
+with VTK's rules in its own arithmetic (mtree/vtk91/cell_geometry.h).
 """
 
 from __future__ import annotations

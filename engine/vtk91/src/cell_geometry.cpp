@@ -1,4 +1,4 @@
-#include "mtree/cells/cell_geometry.h"
+#include "mtree/vtk91/cell_geometry.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,12 +6,14 @@
 #include <string>
 #include <vector>
 
-#include "mtree/cells/cell_eval.h"
+#include "mtree/vtk91/cell_eval.h"
 #include "mtree/cells/cells.h"
 
 namespace mtree {
 
 namespace {
+// VTK 9.1's point-in-cell arithmetic (mtree/vtk91/cell_eval.h) decides the linear volume cells.
+using namespace vtk91;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 /// vtkQuad, vtkTetra, vtkWedge and vtkPyramid accept parametric coordinates this far outside

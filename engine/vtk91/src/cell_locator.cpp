@@ -1,4 +1,4 @@
-#include "mtree/cells/cell_locator.h"
+#include "mtree/vtk91/cell_locator.h"
 
 #include <omp.h>
 
@@ -10,6 +10,7 @@
 #include <string>
 #include <unordered_set>
 
+#include "mtree/cells/leaf_boxes.h"
 #include "mtree/cells/segment_filter.h"
 #include "mtree/core/builder.h"
 #include "mtree/core/parallel.h"

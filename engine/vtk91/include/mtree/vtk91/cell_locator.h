@@ -18,7 +18,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "mtree/cells/cell_geometry.h"
+#include "mtree/vtk91/cell_geometry.h"
 #include "mtree/cells/cells.h"
 #include "mtree/core/matrix_tree.h"
 #include "mtree/core/memory.h"
