@@ -8,6 +8,8 @@
 #   3. CMake configure + build into build/
 #   4. a .pth file so .venv finds python/ (matrixtree) and build/python
 #      (matrixtree_vtk) without PYTHONPATH
+#   5. the ParaView plugin (paraview/) against ParaView 5.11's own VTK 9.2 in
+#      build-paraview/, with python3-paraview unpacked there for pvbatch
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -32,6 +34,8 @@ APT_PACKAGES=(
   libgtest-dev
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
   xvfb xauth
+  openmpi-bin python3-mpi4py
+  paraview paraview-dev
 )
 
 missing=()
@@ -49,6 +53,9 @@ if ((${#missing[@]})); then
   fi
   say "apt: installing ${missing[*]}"
   $SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  # paraview's Recommends (python3-paraview) conflict with python3-vtk9: nothing may be removed.
+  removals="$(apt-get install -s --no-install-recommends "${missing[@]}" | grep '^Remv' || true)"
+  [[ -z "$removals" ]] || die "installing ${missing[*]} would remove packages:"$'\n'"$removals"
   $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
     "${missing[@]}" >/dev/null
   say "apt: done"
@@ -169,3 +176,47 @@ fi
 "$VPY" -c 'import matrixtree_vtk, matrixtree; print(matrixtree.__version__)' >/dev/null \
   || die ".venv cannot import matrixtree_vtk / matrixtree"
 say "ok: .venv/bin/python imports matrixtree $("$VPY" -c 'import matrixtree; print(matrixtree.__version__)') (took $((SECONDS - T0)) s)"
+
+# ---------------------------------------------------------------------------
+# 5. ParaView plugin (build-paraview/, ParaView 5.11 and its VTK 9.2)
+# ---------------------------------------------------------------------------
+# pvbatch needs ParaView's Python packages, which Debian ships in python3-paraview; that package
+# conflicts with python3-vtk9 (Debian's VTK 9.1, the project's SDK), so it is unpacked into
+# build-paraview/python3-paraview (dpkg -x touches no installed package) instead of installed.
+T5=$SECONDS
+PV_BUILD="$ROOT/build-paraview"
+PV_UNPACKED="$PV_BUILD/python3-paraview"
+pv_version="$(dpkg-query -W -f='${Version}' paraview)"
+if [[ "$(cat "$PV_UNPACKED/VERSION" 2>/dev/null)" != "$pv_version" ]]; then
+  say "paraview: unpacking python3-paraview $pv_version into build-paraview/python3-paraview"
+  rm -rf "$PV_UNPACKED"
+  mkdir -p "$PV_UNPACKED"
+  deb_dir="$(mktemp -d)"
+  apt_sudo=""
+  [[ "$(id -u)" -eq 0 ]] || apt_sudo="sudo"
+  if ! (cd "$deb_dir" && apt-get download -qq "python3-paraview=$pv_version" 2>/dev/null); then
+    $apt_sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+    (cd "$deb_dir" && apt-get download -qq "python3-paraview=$pv_version" 2>/dev/null) \
+      || die "apt-get download python3-paraview=$pv_version failed"
+  fi
+  dpkg -x "$deb_dir"/python3-paraview_*.deb "$PV_UNPACKED"
+  rm -rf "$deb_dir"
+  printf '%s\n' "$pv_version" >"$PV_UNPACKED/VERSION"
+fi
+say "paraview: configure build-paraview/ (log: build-paraview/configure.log)"
+if ! cmake -S "$ROOT/paraview" -B "$PV_BUILD" -DCMAKE_BUILD_TYPE=Release >"$PV_BUILD/configure.log" 2>&1; then
+  tail -n 40 "$PV_BUILD/configure.log" >&2
+  die "cmake configure of the ParaView plugin failed"
+fi
+say "paraview: build -j$(nproc) (log: build-paraview/build.log)"
+if ! cmake --build "$PV_BUILD" -j"$(nproc)" >"$PV_BUILD/build.log" 2>&1; then
+  grep -E 'error|Error' "$PV_BUILD/build.log" | head -n 40 >&2 || true
+  die "the ParaView plugin build failed, see build-paraview/build.log"
+fi
+PV_PLUGIN="$PV_BUILD/lib/paraview-5.11/plugins/MatrixTree/MatrixTree.so"
+[[ -f "$PV_PLUGIN" ]] || die "the plugin $PV_PLUGIN was not built"
+for pkg in python3-vtk9 libvtk9-dev; do  # the VTK 9.1 SDK must have survived
+  [[ "$(dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null)" == "install ok installed" ]] \
+    || die "$pkg is no longer installed"
+done
+say "paraview: plugin $PV_PLUGIN (took $((SECONDS - T5)) s)"
