@@ -28,7 +28,10 @@ def run_mpi(ranks, command, out, *args, timeout=900):
     if os.geteuid() == 0:
         cmd.insert(1, "--allow-run-as-root")
     cmd += [sys.executable, os.path.join(HERE, "mpi_checks.py"), command, str(out), *map(str, args)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    # Python's copy of the environment: a singleton MPI in this process (a doctest importing
+    # matrixtree.mpi) sets OMPI_* variables in the C environment that would make mpirun fail.
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
     log = proc.stdout + proc.stderr
     assert proc.returncode == 0 and os.path.exists(out), f"mpirun {command} failed ({proc.returncode}):\n{log[-4000:]}"
     got = np.load(out)

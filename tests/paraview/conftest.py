@@ -36,7 +36,8 @@ GRIDS = {"pipe_flow_tets.vtu": "Pressure", "disk_out_ref.ex2": "Temp", "brick_pr
 
 
 def pv_env():
-    env = dict(os.environ)
+    # Python's copy of the environment (never the C one a singleton MPI in this process altered).
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
     env["PYTHONPATH"] = os.pathsep.join(PV_PYTHONPATH)
     env.pop("VIRTUAL_ENV", None)
     return env
