@@ -124,17 +124,23 @@ say "venv: VTK $("$VPY" -c 'import vtkmodules.vtkCommonCore as c; print(c.vtkVer
 # ---------------------------------------------------------------------------
 # 3. CMake build
 # ---------------------------------------------------------------------------
-mkdir -p "$BUILD_DIR"
-say "cmake: configure build/ (log: build/configure.log)"
-if ! cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >"$BUILD_DIR/configure.log" 2>&1; then
-  tail -n 40 "$BUILD_DIR/configure.log" >&2
-  die "cmake configure failed"
-fi
-say "cmake: build -j$(nproc) (log: build/build.log)"
-if ! cmake --build "$BUILD_DIR" -j"$(nproc)" >"$BUILD_DIR/build.log" 2>&1; then
-  grep -E 'error|Error' "$BUILD_DIR/build.log" | head -n 40 >&2 || true
-  die "cmake build failed, see build/build.log"
-fi
+# cmake_build STAGE SOURCE_DIR BUILD_DIR: configure and build a Release tree, logs in BUILD_DIR.
+cmake_build() {
+  local stage="$1" src="$2" dir="$3" name
+  name="$(basename "$dir")"
+  mkdir -p "$dir"
+  say "$stage: configure $name/ (log: $name/configure.log)"
+  if ! cmake -S "$src" -B "$dir" -DCMAKE_BUILD_TYPE=Release >"$dir/configure.log" 2>&1; then
+    tail -n 40 "$dir/configure.log" >&2
+    die "$stage: cmake configure of $name/ failed"
+  fi
+  say "$stage: build -j$(nproc) (log: $name/build.log)"
+  if ! cmake --build "$dir" -j"$(nproc)" >"$dir/build.log" 2>&1; then
+    grep -E 'error|Error' "$dir/build.log" | head -n 40 >&2 || true
+    die "$stage: build of $name/ failed, see $name/build.log"
+  fi
+}
+cmake_build cmake "$ROOT" "$BUILD_DIR"
 n_warn="$(grep -c ': warning:' "$BUILD_DIR/build.log" || true)"
 if ((n_warn)); then
   say "cmake: $n_warn compiler warning(s) in this build:"
@@ -203,16 +209,7 @@ if [[ "$(cat "$PV_UNPACKED/VERSION" 2>/dev/null)" != "$pv_version" ]]; then
   rm -rf "$deb_dir"
   printf '%s\n' "$pv_version" >"$PV_UNPACKED/VERSION"
 fi
-say "paraview: configure build-paraview/ (log: build-paraview/configure.log)"
-if ! cmake -S "$ROOT/paraview" -B "$PV_BUILD" -DCMAKE_BUILD_TYPE=Release >"$PV_BUILD/configure.log" 2>&1; then
-  tail -n 40 "$PV_BUILD/configure.log" >&2
-  die "cmake configure of the ParaView plugin failed"
-fi
-say "paraview: build -j$(nproc) (log: build-paraview/build.log)"
-if ! cmake --build "$PV_BUILD" -j"$(nproc)" >"$PV_BUILD/build.log" 2>&1; then
-  grep -E 'error|Error' "$PV_BUILD/build.log" | head -n 40 >&2 || true
-  die "the ParaView plugin build failed, see build-paraview/build.log"
-fi
+cmake_build paraview "$ROOT/paraview" "$PV_BUILD"
 PV_PLUGIN="$PV_BUILD/lib/paraview-5.11/plugins/MatrixTree/MatrixTree.so"
 [[ -f "$PV_PLUGIN" ]] || die "the plugin $PV_PLUGIN was not built"
 for pkg in python3-vtk9 libvtk9-dev; do  # the VTK 9.1 SDK must have survived

@@ -11,7 +11,7 @@ locator, the nodes of one level of its tree around it, and a picture of both
 import os
 import sys
 
-from paraview.simple import (CreateView, GetActiveViewOrCreate, LoadPlugin, Plane, ResampleWithDataset,
+from paraview.simple import (GetActiveViewOrCreate, LoadPlugin, Plane, ResampleWithDataset,
                              SaveScreenshot, Show, ColorBy, XMLUnstructuredGridReader)
 
 ROOT = os.getcwd()

@@ -479,18 +479,17 @@ def _visibility_order(tree, eye, origin, spacing):
     return _visibility_order(first, eye, origin, spacing) + _visibility_order(second, eye, origin, spacing)
 
 
+def _nodes(function, width: int) -> list:
+    """A transfer function's nodes as lists of `width` numbers (x and its values), to broadcast."""
+    def node(i):
+        v = [0.0] * width
+        function.GetNodeValue(i, v)
+        return v
+    return [node(i) for i in range(function.GetSize())]
+
+
 def _function_nodes(ctf: vtkColorTransferFunction, otf: vtkPiecewiseFunction):
-    """The nodes of both transfer functions, as lists (to broadcast them)."""
-    cn, on = [], []
-    for i in range(ctf.GetSize()):
-        v = [0.0] * 6
-        ctf.GetNodeValue(i, v)
-        cn.append(v)
-    for i in range(otf.GetSize()):
-        v = [0.0] * 4
-        otf.GetNodeValue(i, v)
-        on.append(v)
-    return cn, on
+    return _nodes(ctf, 6), _nodes(otf, 4)
 
 
 def _functions_from_nodes(cn, on):

@@ -14,13 +14,12 @@ import json
 import os
 
 import numpy as np
-import pytest
 from vtkmodules.vtkCommonCore import mutable
 from vtkmodules.vtkCommonDataModel import vtkGenericCell, vtkStaticCellLocator
 from vtkmodules.vtkCommonCore import vtkIdList
 
 import matrixtree
-from conftest import run_pvbatch
+from pvtools import run_pvbatch
 
 DATA = matrixtree.scenes.data_dir()
 
@@ -145,15 +144,8 @@ def test_casters_and_representation_equal_the_vtk91_build(tmp_path):
     vsettings = {"Position": list(cam.GetPosition()), "FocalPoint": list(cam.GetFocalPoint()),
                  "ViewUp": list(cam.GetViewUp()), "ViewAngle": cam.GetViewAngle(),
                  "SampleDistance": 0.5 * min(sp), "ScalarOpacityUnitDistance": float(np.mean(sp))}
-    color, opacity = [], []
-    for i in range(ctf.GetSize()):
-        v = [0.0] * 6
-        ctf.GetNodeValue(i, v)
-        color.append(v)
-    for i in range(otf.GetSize()):
-        v = [0.0] * 4
-        otf.GetNodeValue(i, v)
-        opacity.append(v)
+    color = [[ctf.GetNodeValue(i, v) and v for v in [[0.0] * 6]][0] for i in range(ctf.GetSize())]
+    opacity = [[otf.GetNodeValue(i, v) and v for v in [[0.0] * 4]][0] for i in range(otf.GetSize())]
     settings = tmp_path / "settings.json"
     json.dump({"size": size, "volume": vsettings, "color": color, "opacity": opacity}, open(settings, "w"))
     out = tmp_path / "casters.npz"

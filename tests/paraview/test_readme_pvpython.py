@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from conftest import ROOT
+from pvtools import ROOT
 
 BLOCKS = re.findall(r"```pvpython\n(.*?)```", open(os.path.join(ROOT, "README.md")).read(), re.S)
 
