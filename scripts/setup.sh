@@ -12,6 +12,8 @@
 #   4. a .pth file so .venv finds python/ (matrixtree), build/python
 #      (matrixtree_vtk) and build/engine-python/python (matrixtree_engine)
 #      without PYTHONPATH
+#   5. the ParaView plugin (paraview/) against ParaView 5.11's own VTK 9.2 in
+#      build-paraview/, with python3-paraview unpacked there for pvbatch
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -36,6 +38,8 @@ APT_PACKAGES=(
   libgtest-dev
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers clinfo
   xvfb xauth
+  openmpi-bin python3-mpi4py
+  paraview paraview-dev
 )
 
 missing=()
@@ -53,6 +57,9 @@ if ((${#missing[@]})); then
   fi
   say "apt: installing ${missing[*]}"
   $SUDO env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  # paraview's Recommends (python3-paraview) conflict with python3-vtk9: nothing may be removed.
+  removals="$(apt-get install -s --no-install-recommends "${missing[@]}" | grep '^Remv' || true)"
+  [[ -z "$removals" ]] || die "installing ${missing[*]} would remove packages:"$'\n'"$removals"
   $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
     "${missing[@]}" >/dev/null
   say "apt: done"
@@ -121,18 +128,26 @@ say "venv: VTK $("$VPY" -c 'import vtkmodules.vtkCommonCore as c; print(c.vtkVer
 # ---------------------------------------------------------------------------
 # 3. CMake build
 # ---------------------------------------------------------------------------
-mkdir -p "$BUILD_DIR"
-say "cmake: configure build/ (log: build/configure.log)"
-if ! cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release -DMATRIXTREE_BENCHMARKS=ON \
-    >"$BUILD_DIR/configure.log" 2>&1; then
-  tail -n 40 "$BUILD_DIR/configure.log" >&2
-  die "cmake configure failed"
-fi
-say "cmake: build -j$(nproc) (log: build/build.log)"
-if ! cmake --build "$BUILD_DIR" -j"$(nproc)" >"$BUILD_DIR/build.log" 2>&1; then
-  grep -E 'error|Error' "$BUILD_DIR/build.log" | head -n 40 >&2 || true
-  die "cmake build failed, see build/build.log"
-fi
+# cmake_build STAGE SOURCE_DIR BUILD_DIR [CMAKE_ARGS...]: configure and build a Release tree,
+# logs in BUILD_DIR.
+cmake_build() {
+  local stage="$1" src="$2" dir="$3" name
+  shift 3
+  name="$(basename "$dir")"
+  mkdir -p "$dir"
+  say "$stage: configure $name/ (log: $name/configure.log)"
+  if ! cmake -S "$src" -B "$dir" -DCMAKE_BUILD_TYPE=Release "$@" >"$dir/configure.log" 2>&1; then
+    tail -n 40 "$dir/configure.log" >&2
+    die "$stage: cmake configure of $name/ failed"
+  fi
+  say "$stage: build -j$(nproc) (log: $name/build.log)"
+  if ! cmake --build "$dir" -j"$(nproc)" >"$dir/build.log" 2>&1; then
+    grep -E 'error|Error' "$dir/build.log" | head -n 40 >&2 || true
+    die "$stage: build of $name/ failed, see $name/build.log"
+  fi
+}
+# The benchmark drivers (MATRIXTREE_BENCHMARKS=ON) are built too: bench/*.py run them.
+cmake_build cmake "$ROOT" "$BUILD_DIR" -DMATRIXTREE_BENCHMARKS=ON
 n_warn="$(grep -c ': warning:' "$BUILD_DIR/build.log" || true)"
 if ((n_warn)); then
   say "cmake: $n_warn compiler warning(s) in this build:"
@@ -146,14 +161,8 @@ WRAPPED_DIR="$BUILD_DIR/python"
 # The engine-only extension (no VTK), built for .venv's Python so that the tests can compare it
 # with the VTK module; `pip install .` builds the same CMake entry for pip users.
 ENGINE_DIR="$BUILD_DIR/engine-python"
-mkdir -p "$ENGINE_DIR"
-say "cmake: engine extension build/engine-python (log: build/engine-python/build.log)"
-if ! { cmake -S "$ROOT/python/bindings" -B "$ENGINE_DIR" -DCMAKE_BUILD_TYPE=Release \
-         -DPython_EXECUTABLE="$VPY" -Dnanobind_DIR="$("$VPY" -m nanobind --cmake_dir)" \
-       && cmake --build "$ENGINE_DIR" -j"$(nproc)"; } >"$ENGINE_DIR/build.log" 2>&1; then
-  grep -E 'error|Error' "$ENGINE_DIR/build.log" | head -n 40 >&2 || true
-  die "engine extension build failed, see build/engine-python/build.log"
-fi
+cmake_build engine "$ROOT/python/bindings" "$ENGINE_DIR" \
+  -DPython_EXECUTABLE="$VPY" -Dnanobind_DIR="$("$VPY" -m nanobind --cmake_dir)"
 
 # ---------------------------------------------------------------------------
 # 4. Python package and .pth
@@ -186,3 +195,38 @@ fi
 "$VPY" -c 'import matrixtree_vtk, matrixtree_engine, matrixtree; print(matrixtree.__version__)' >/dev/null \
   || die ".venv cannot import matrixtree_vtk / matrixtree_engine / matrixtree"
 say "ok: .venv/bin/python imports matrixtree $("$VPY" -c 'import matrixtree; print(matrixtree.__version__)') (took $((SECONDS - T0)) s)"
+
+# ---------------------------------------------------------------------------
+# 5. ParaView plugin (build-paraview/, ParaView 5.11 and its VTK 9.2)
+# ---------------------------------------------------------------------------
+# pvbatch needs ParaView's Python packages, which Debian ships in python3-paraview; that package
+# conflicts with python3-vtk9 (Debian's VTK 9.1, the project's SDK), so it is unpacked into
+# build-paraview/python3-paraview (dpkg -x touches no installed package) instead of installed.
+T5=$SECONDS
+PV_BUILD="$ROOT/build-paraview"
+PV_UNPACKED="$PV_BUILD/python3-paraview"
+pv_version="$(dpkg-query -W -f='${Version}' paraview)"
+if [[ "$(cat "$PV_UNPACKED/VERSION" 2>/dev/null)" != "$pv_version" ]]; then
+  say "paraview: unpacking python3-paraview $pv_version into build-paraview/python3-paraview"
+  rm -rf "$PV_UNPACKED"
+  mkdir -p "$PV_UNPACKED"
+  deb_dir="$(mktemp -d)"
+  apt_sudo=""
+  [[ "$(id -u)" -eq 0 ]] || apt_sudo="sudo"
+  if ! (cd "$deb_dir" && apt-get download -qq "python3-paraview=$pv_version" 2>/dev/null); then
+    $apt_sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+    (cd "$deb_dir" && apt-get download -qq "python3-paraview=$pv_version" 2>/dev/null) \
+      || die "apt-get download python3-paraview=$pv_version failed"
+  fi
+  dpkg -x "$deb_dir"/python3-paraview_*.deb "$PV_UNPACKED"
+  rm -rf "$deb_dir"
+  printf '%s\n' "$pv_version" >"$PV_UNPACKED/VERSION"
+fi
+cmake_build paraview "$ROOT/paraview" "$PV_BUILD"
+PV_PLUGIN="$PV_BUILD/lib/paraview-5.11/plugins/MatrixTree/MatrixTree.so"
+[[ -f "$PV_PLUGIN" ]] || die "the plugin $PV_PLUGIN was not built"
+for pkg in python3-vtk9 libvtk9-dev; do  # the VTK 9.1 SDK must have survived
+  [[ "$(dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null)" == "install ok installed" ]] \
+    || die "$pkg is no longer installed"
+done
+say "paraview: plugin $PV_PLUGIN (took $((SECONDS - T5)) s)"

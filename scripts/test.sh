@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Set up (idempotent), then run the C++ tests (ctest), the Python tests
-# (pytest in .venv), and the Python tests that need no VTK C++ classes in an
+# (pytest in .venv), the Python tests that need no VTK C++ classes in an
 # isolated pip environment (build/venv-pip: the newest pip `vtk` and `pyvista`,
-# the package installed with `pip install .`). Exits non-zero if setup or any
-# stage fails.
+# the package installed with `pip install .`), the ParaView plugin tests
+# (pvbatch) and the MPI tests (mpirun). Exits non-zero if setup or any stage
+# fails.
 set -uo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -53,6 +54,21 @@ pip_stage 2>&1 | tee build/pytest-pip.log
 pip_rc=${PIPESTATUS[0]}
 T_PIP=$((SECONDS - T3))
 
+# The ParaView plugin (built by setup.sh into build-paraview/) through pvbatch, also under
+# mpirun -np 2: tests/paraview runs in .venv and starts pvbatch for every ParaView step.
+echo "[test] paraview"
+T5=$SECONDS
+"${PYTEST[@]}" tests/paraview 2>&1 | tee build/paraview.log
+paraview_rc=${PIPESTATUS[0]}
+T_PARAVIEW=$((SECONDS - T5))
+
+# matrixtree.mpi under mpirun -np 2 and 4 (tests/mpi starts mpirun itself).
+echo "[test] mpi"
+T4=$SECONDS
+"${PYTEST[@]}" tests/mpi 2>&1 | tee build/mpi.log
+mpi_rc=${PIPESTATUS[0]}
+T_MPI=$((SECONDS - T4))
+
 verdict() { if [[ "$1" -eq 0 ]]; then echo "PASS"; else echo "FAIL (exit $1)"; fi; }
 echo
 echo "================ summary ================"
@@ -60,5 +76,7 @@ echo "setup : ok (${T_SETUP} s)"
 echo "ctest : $(verdict "$ctest_rc") (${T_CTEST} s) - $(grep -E 'tests passed|tests failed' build/ctest.log | tail -n 1)"
 echo "pytest: $(verdict "$pytest_rc") (${T_PYTEST} s) - $(grep -E '(passed|failed|error|no tests ran)' build/pytest.log | tail -n 1)"
 echo "pip   : $(verdict "$pip_rc") (${T_PIP} s) - $(grep -oE 'vtk [0-9.]+, pyvista [0-9.]+' build/pytest-pip.log | tail -n 1); $(grep -E '(passed|failed|error|no tests ran)' build/pytest-pip.log | tail -n 1)"
+echo "paraview: $(verdict "$paraview_rc") (${T_PARAVIEW} s) - $(grep -E '(passed|failed|error|no tests ran)' build/paraview.log | tail -n 1)"
+echo "mpi   : $(verdict "$mpi_rc") (${T_MPI} s) - $(grep -E '(passed|failed|error|no tests ran)' build/mpi.log | tail -n 1)"
 
-[[ "$ctest_rc" -eq 0 && "$pytest_rc" -eq 0 && "$pip_rc" -eq 0 ]]
+[[ "$ctest_rc" -eq 0 && "$pytest_rc" -eq 0 && "$pip_rc" -eq 0 && "$paraview_rc" -eq 0 && "$mpi_rc" -eq 0 ]]
