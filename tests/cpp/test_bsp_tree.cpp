@@ -158,6 +158,34 @@ TEST(Bsp, ThreeDirectionsIsAKdTree) {
   EXPECT_EQ(ag.notBitEqual, 0u);
 }
 
+TEST(Bsp, SplitPolygonsLieOnTheirPlanes) {
+  const TriangleMesh mesh = mtest::loadRealMesh("scenes/utah_hand/hand_00.obj");
+  mtree::BspBuildOptions o;
+  o.maxDepth = 10;
+  const PointerSplitTree p = mtree::buildBspTree(mesh, o);
+  ImplicitSplitTree tree;
+  tree.build(p, mesh);
+  const std::vector<mtree::SplitPolygon> polys = tree.splitPolygons(10);
+  uint64_t inner = 0;
+  for (const auto& n : p.nodes) inner += !n.leaf;
+  EXPECT_GT(polys.size(), inner * 9 / 10) << "a plane inside its cell must cut it";
+  EXPECT_LE(polys.size(), inner);
+  const double tol = 1e-9 * mtree::norm(mtest::meshBounds(mesh).extent());
+  uint64_t off = 0, diagonal = 0;
+  for (const mtree::SplitPolygon& q : polys) {
+    EXPECT_GE(q.points.size(), 3u);
+    diagonal += q.dir >= 3;
+    // The plane's world distance from the node word at the root: every point on the plane.
+    for (const Vec3& x : q.points) {
+      const Vec3 n = tree.frame().normal[q.dir];
+      const double w = mtree::dot(n, x);
+      off += !(std::fabs(w - mtree::dot(n, q.points[0])) <= tol * mtree::norm(n));
+    }
+  }
+  EXPECT_EQ(off, 0u);
+  EXPECT_GT(diagonal, 0u);
+}
+
 TEST(Bsp, WatertightThroughEdgesAndVertices) {
   const TriangleMesh sphere = mtest::makeIcosphere(3, 1.0);
   const PointerSplitTree p = mtree::buildBspTree(sphere);

@@ -194,6 +194,50 @@ TEST(ImplicitKd, UniformBlockEdgesHoldTheSameTree) {
   }
 }
 
+TEST(ImplicitKd, SplitPolygonsAreTheNodesPlanesInTheirCells) {
+  const TriangleMesh mesh = mtest::loadRealMesh("scenes/utah_hand/hand_00.obj");
+  const SahKdTree sah(mesh);
+  const PointerSplitTree ptr = mtree::pointerTreeOf(sah);
+  ImplicitSplitTree tree;
+  tree.build(ptr, mesh);
+  const int L = 9;
+  const std::vector<mtree::SplitPolygon> polys = tree.splitPolygons(L);
+  // One rectangle per inner node of levels 0..L, on its plane, inside the root box; the root's
+  // spans the root box.
+  uint64_t inner = 0;
+  std::vector<std::pair<uint32_t, int>> stack{{0u, 0}};
+  while (!stack.empty()) {
+    const auto [n, l] = stack.back();
+    stack.pop_back();
+    if (ptr.nodes[n].leaf || l > L) continue;
+    ++inner;
+    stack.push_back({ptr.nodes[n].child, l + 1});
+    stack.push_back({ptr.nodes[n].child + 1, l + 1});
+  }
+  EXPECT_EQ(polys.size(), inner);
+  const Box rb = tree.rootBox();
+  uint64_t bad = 0;
+  for (const mtree::SplitPolygon& p : polys) {
+    bad += p.points.size() != 4;
+    for (const Vec3& q : p.points) {
+      for (int a = 0; a < 3; ++a) bad += q[a] < rb.lo[a] || q[a] > rb.hi[a];
+    }
+  }
+  EXPECT_EQ(bad, 0u);
+  const mtree::SplitPolygon& root = polys[0];
+  EXPECT_EQ(root.level, 0);
+  const int a = root.dir, a1 = (a + 1) % 3;
+  double lo = 1e300, hi = -1e300;
+  for (const Vec3& q : root.points) {
+    // Interpolated along the cell's edges: on the plane to round-off.
+    EXPECT_NEAR(q[a], sah.planeWorld(a, sah.nodes()[0].split()), 1e-12 * mtree::norm(rb.extent()));
+    lo = std::min(lo, q[a1]);
+    hi = std::max(hi, q[a1]);
+  }
+  EXPECT_EQ(lo, rb.lo[a1]);
+  EXPECT_EQ(hi, rb.hi[a1]);
+}
+
 TEST(ImplicitKd, UnencodablePlanesAreRoundedAndTrianglesRedistributed) {
   const TriangleMesh mesh = mtest::loadRealMesh("scenes/utah_hand/hand_00.obj");
   // A general kd-tree with planes anywhere (random axis, random float inside the cell: most have

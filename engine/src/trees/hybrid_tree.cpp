@@ -219,4 +219,49 @@ void HybridTree::build(const TriangleMesh& mesh, const HybridBuildOptions& opt, 
   if (stats) *stats = st;
 }
 
+std::vector<SplitPolygon> HybridTree::splitPolygons(int maxLevel) const {
+  std::vector<SplitPolygon> out;
+  if (matrix_.empty()) return out;
+  const int H = matrix_.height();
+  const BlockSparseMatrix<MtLeafRange>& lv = matrix_.leafLevel();
+  struct Item {
+    uint32_t node;
+    Box box;
+    int level;
+  };
+  for (uint32_t s = 0; s < lv.data().size(); ++s) {
+    if (lv.data()[s].begin == MT_NULL) continue;
+    int c[3];
+    lv.entryCoords(s, c);
+    const uint32_t root = roots_.get(c[0], c[1], c[2]);
+    if (root == MT_NULL) continue;
+    std::vector<Item> stack{{root, matrix_.nodeBox(H, c), 0}};
+    while (!stack.empty()) {
+      const Item it = stack.back();
+      stack.pop_back();
+      const SahKdNode& nd = nodes_[it.node];
+      if (nd.isLeaf() || it.level > maxLevel) continue;
+      const int a = nd.axis(), a1 = (a + 1) % 3, a2 = (a + 2) % 3;
+      const double w = frame_.world(a, nd.split());
+      SplitPolygon p;
+      p.level = it.level;
+      p.dir = a;
+      for (int k = 0; k < 4; ++k) {
+        Vec3 q;
+        q[a] = w;
+        q[a1] = (k == 1 || k == 2) ? it.box.hi[a1] : it.box.lo[a1];
+        q[a2] = k >= 2 ? it.box.hi[a2] : it.box.lo[a2];
+        p.points.push_back(q);
+      }
+      out.push_back(std::move(p));
+      Box l = it.box, r = it.box;
+      l.hi[a] = w;
+      r.lo[a] = w;
+      stack.push_back({nd.leftChild(), l, it.level + 1});
+      stack.push_back({nd.leftChild() + 1, r, it.level + 1});
+    }
+  }
+  return out;
+}
+
 }  // namespace mtree

@@ -7,6 +7,8 @@
 #include <string>
 #include <utility>
 
+#include "polytope.h"
+
 namespace mtree {
 
 const char* splitTraversalName(SplitTraversal t) {
@@ -273,6 +275,37 @@ void ImplicitSplitTree::makeViews() {
     }
     v.sz = v.lb[0] + v.lb[1];
   }
+}
+
+std::vector<SplitPolygon> ImplicitSplitTree::splitPolygons(int maxLevel) const {
+  std::vector<SplitPolygon> out;
+  if (levels_.empty()) return out;
+  struct Item {
+    int level, c[3];
+    detail::Poly cell;
+  };
+  std::vector<Item> stack;
+  stack.push_back(Item{0, {0, 0, 0}, detail::boxPoly(root_)});
+  while (!stack.empty()) {
+    Item it = std::move(stack.back());
+    stack.pop_back();
+    const uint32_t w = word(it.level, it.c[0], it.c[1], it.c[2]);
+    if (isLeaf(w) || it.level > maxLevel) continue;
+    const int k = direction(w);
+    const double p = frame_.world(k, split(w));
+    const Vec3 n = frame_.normal[k];
+    SplitPolygon poly;
+    poly.level = it.level;
+    poly.dir = k;
+    poly.points = detail::cutPolygon(it.cell, n, p);
+    if (!poly.points.empty()) out.push_back(std::move(poly));
+    for (int side = 0; side < 2; ++side) {
+      Item ch{it.level + 1, {it.c[0], it.c[1], it.c[2]}, detail::clipPoly(it.cell, n, p, side == 0 ? 1.0 : -1.0)};
+      child(it.level, ch.c, side);
+      stack.push_back(std::move(ch));
+    }
+  }
+  return out;
 }
 
 size_t ImplicitSplitTree::nodeBytes() const {

@@ -31,7 +31,10 @@ namespace mtree {
 struct BspBuildOptions {
   double costTraverse = 1.0;   // K_T
   double costIntersect = 1.5;  // K_I
-  double emptyBonus = 0.8;
+  /// lambda for a plane with an empty side. 1 (none), not SahKdTree's 0.8: with 13 directions a
+  /// bonus buys cuts of the polytope's corners that empty little space, and the tree renders
+  /// slower (docs/trees.md, the BSP section).
+  double emptyBonus = 1.0;
   int bins = 16;               // candidate planes per direction: bins - 1 (2..256)
   int directions = 13;         // 13 (26-DOP) or 3 (the axes: a binned kd-tree)
   int maxDepth = 0;            // 0 = round(8 + 1.3 log2 N); at most ImplicitSplitTree::kMaxLevel

@@ -43,15 +43,15 @@ namespace mtree {
 struct HybridBuildOptions {
   /// The matrix part: kind, height (0 = automatic), block edge, overlap, threads. Its leafScale
   /// sets how large the matrix leaves are (in median triangle extents; the matrix trees' own
-  /// default is 2): larger leaves leave more to the kd-trees.
+  /// default is 2, here 4: one level up for an octree): larger leaves leave more to the kd-trees.
   BuildOptions matrix = [] {
     BuildOptions o;
-    o.leafScale = 8.0;
+    o.leafScale = 4.0;
     return o;
   }();
   int leafTriangles = 8;  // matrix leaves with more triangles than this get a kd-tree
   int bins = 8;           // candidate planes per axis: bins - 1 (2..64)
-  int maxDepth = 20;      // of each kd-tree (1..SahKdTree::kMaxDepth)
+  int maxDepth = 8;       // of each kd-tree (1..kMaxDepth): shallow, so the build stays fast
   double costTraverse = 1.0, costIntersect = 1.5, emptyBonus = 0.8;
 };
 
@@ -87,6 +87,10 @@ class HybridTree {
   size_t bytes() const {
     return matrix_.bytes() + roots_.bytes() + nodes_.size() * sizeof(SahKdNode) + prims_.size() * sizeof(uint32_t);
   }
+
+  /// The kd-trees' split planes within their cells (rectangles in the matrix leaves' boxes),
+  /// kd levels [0, maxLevel] (level 0: a kd root); dir is the axis.
+  std::vector<SplitPolygon> splitPolygons(int maxLevel) const;
 
   bool intersectFirst(const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin, double tmax, RayHit& hit,
                       TriangleTest test = TriangleTest::MollerTrumbore, TraversalStats* st = nullptr) const;

@@ -128,6 +128,10 @@ class ImplicitSplitTree {
   /// Per level: nodes, block shape, pointer cells, blocks, bytes (the layout built).
   ImplicitLayoutCost levelCosts() const { return cost_; }
 
+  /// The split planes of the inner nodes of levels [0, maxLevel] within their cells (the root
+  /// box cut by the planes above), found by descending from the root through derived children.
+  std::vector<SplitPolygon> splitPolygons(int maxLevel) const;
+
   /// The word of node c at level l (kEmpty where its block is absent). One pointer-matrix read and
   /// one block read.
   uint32_t word(int l, int x, int y, int z) const {

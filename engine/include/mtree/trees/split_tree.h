@@ -105,6 +105,14 @@ struct PointerSplitTree {
   uint64_t leaves() const;
 };
 
+/// A node's split plane drawn within the node's cell (a convex polygon, counter-clockwise about
+/// the direction's normal), for pictures of a tree (vtkMatrixTreeRepresentation, docs/trees.md).
+struct SplitPolygon {
+  int level = 0;
+  int dir = 0;
+  std::vector<Vec3> points;
+};
+
 /// SahKdTree's nodes, triangle lists and plane frame (the same planes, bit for bit).
 PointerSplitTree pointerTreeOf(const SahKdTree& tree);
 
