@@ -1,6 +1,7 @@
 // OpenCL host code for the implicit split-plane trees (opencl/trees.cl). See opencl_trees.h.
 #include "mtree/device/opencl_trees.h"
 
+#include <algorithm>
 #include <limits>
 #include <stdexcept>
 
@@ -104,6 +105,18 @@ void sumCounters(Launcher& run, Buffer& counters, size_t n, uint64_t* visits, ui
 void SplitTreeTracer::intersectFirst(const double* orig, const double* dirs, size_t n, double tmin, double tmax,
                                      double* t, uint32_t* prim, uint64_t* visits, uint64_t* tests,
                                      std::vector<KernelTiming>* kernels) {
+  trace(orig, dirs, n, tmin, tmax, t, prim, nullptr, visits, tests, kernels);
+}
+
+void SplitTreeTracer::intersectAny(const double* orig, const double* dirs, size_t n, double tmin, double tmax,
+                                   uint8_t* hit, uint64_t* visits, uint64_t* tests,
+                                   std::vector<KernelTiming>* kernels) {
+  trace(orig, dirs, n, tmin, tmax, nullptr, nullptr, hit, visits, tests, kernels);
+}
+
+void SplitTreeTracer::trace(const double* orig, const double* dirs, size_t n, double tmin, double tmax, double* t,
+                            uint32_t* prim, uint8_t* hit, uint64_t* visits, uint64_t* tests,
+                            std::vector<KernelTiming>* kernels) {
   State& S = *st_;
   requireUploaded(S.uploaded);
   if (visits) *visits = 0;
@@ -112,8 +125,12 @@ void SplitTreeTracer::intersectFirst(const double* orig, const double* dirs, siz
   if (n >= MT_NULL) throw std::length_error("OpenCL SplitTreeTracer: more than 2^32 rays in one batch");
   if (S.empty) {
     for (size_t i = 0; i < n; ++i) {
-      t[i] = std::numeric_limits<double>::infinity();
-      prim[i] = MT_NULL;
+      if (hit) {
+        hit[i] = 0;
+      } else {
+        t[i] = std::numeric_limits<double>::infinity();
+        prim[i] = MT_NULL;
+      }
     }
     return;
   }
@@ -122,58 +139,37 @@ void SplitTreeTracer::intersectFirst(const double* orig, const double* dirs, siz
   Launcher run(impl, kernels);
   S.orig.ensure(impl, 3 * n * sizeof(double), "ray origins");
   S.dirs.ensure(impl, 3 * n * sizeof(double), "ray directions");
-  S.tOut.ensure(impl, n * sizeof(double), "hit distances");
-  S.primOut.ensure(impl, n * sizeof(uint32_t), "hit triangles");
-  const bool count = visits || tests;
-  if (count) S.counters.ensure(impl, 2 * n * sizeof(uint32_t), "ray counters");
-  run.write(S.orig, orig, 3 * n * sizeof(double), "ray origins");
-  run.write(S.dirs, dirs, 3 * n * sizeof(double), "ray directions");
-  const uint32_t nn = static_cast<uint32_t>(n);
-  const cl_int D = S.dirCount, tb = S.tagBits;
-  if (count)
-    run.run("mt_split_first_hit", n, 0, S.levels, S.ptrs, S.words, S.leafStart, S.prims, S.planes, S.box, D, tb, S.pts,
-            S.tris, S.orig, S.dirs, nn, tmin, tmax, S.tOut, S.primOut, S.counters);
-  else
-    run.run("mt_split_first_hit", n, 0, S.levels, S.ptrs, S.words, S.leafStart, S.prims, S.planes, S.box, D, tb, S.pts,
-            S.tris, S.orig, S.dirs, nn, tmin, tmax, S.tOut, S.primOut, nullptr);
-  run.read(S.tOut, t, n * sizeof(double), "hit distances");
-  run.read(S.primOut, prim, n * sizeof(uint32_t), "hit triangles");
-  if (count) sumCounters(run, S.counters, n, visits, tests);
-  run.finish();
-}
-
-void SplitTreeTracer::intersectAny(const double* orig, const double* dirs, size_t n, double tmin, double tmax,
-                                   uint8_t* hit, uint64_t* visits, uint64_t* tests,
-                                   std::vector<KernelTiming>* kernels) {
-  State& S = *st_;
-  requireUploaded(S.uploaded);
-  if (visits) *visits = 0;
-  if (tests) *tests = 0;
-  if (n == 0) return;
-  if (n >= MT_NULL) throw std::length_error("OpenCL SplitTreeTracer: more than 2^32 rays in one batch");
-  if (S.empty) {
-    std::fill(hit, hit + n, uint8_t{0});
-    return;
+  if (hit) {
+    S.hitOut.ensure(impl, n, "shadow hits");
+  } else {
+    S.tOut.ensure(impl, n * sizeof(double), "hit distances");
+    S.primOut.ensure(impl, n * sizeof(uint32_t), "hit triangles");
   }
-  Context::Impl& impl = ctx_->impl();
-  std::lock_guard<std::recursive_mutex> lock(impl.mutex);
-  Launcher run(impl, kernels);
-  S.orig.ensure(impl, 3 * n * sizeof(double), "ray origins");
-  S.dirs.ensure(impl, 3 * n * sizeof(double), "ray directions");
-  S.hitOut.ensure(impl, n, "shadow hits");
   const bool count = visits || tests;
   if (count) S.counters.ensure(impl, 2 * n * sizeof(uint32_t), "ray counters");
   run.write(S.orig, orig, 3 * n * sizeof(double), "ray origins");
   run.write(S.dirs, dirs, 3 * n * sizeof(double), "ray directions");
   const uint32_t nn = static_cast<uint32_t>(n);
   const cl_int D = S.dirCount, tb = S.tagBits;
+  // The counters argument is a buffer or a null pointer: two spellings of the same launch.
+  auto launch = [&](const auto& counters) {
+    if (hit)
+      run.run("mt_split_any_hit", n, 0, S.levels, S.ptrs, S.words, S.leafStart, S.prims, S.planes, S.box, D, tb, S.pts,
+              S.tris, S.orig, S.dirs, nn, tmin, tmax, S.hitOut, counters);
+    else
+      run.run("mt_split_first_hit", n, 0, S.levels, S.ptrs, S.words, S.leafStart, S.prims, S.planes, S.box, D, tb,
+              S.pts, S.tris, S.orig, S.dirs, nn, tmin, tmax, S.tOut, S.primOut, counters);
+  };
   if (count)
-    run.run("mt_split_any_hit", n, 0, S.levels, S.ptrs, S.words, S.leafStart, S.prims, S.planes, S.box, D, tb, S.pts,
-            S.tris, S.orig, S.dirs, nn, tmin, tmax, S.hitOut, S.counters);
+    launch(S.counters);
   else
-    run.run("mt_split_any_hit", n, 0, S.levels, S.ptrs, S.words, S.leafStart, S.prims, S.planes, S.box, D, tb, S.pts,
-            S.tris, S.orig, S.dirs, nn, tmin, tmax, S.hitOut, nullptr);
-  run.read(S.hitOut, hit, n, "shadow hits");
+    launch(nullptr);
+  if (hit) {
+    run.read(S.hitOut, hit, n, "shadow hits");
+  } else {
+    run.read(S.tOut, t, n * sizeof(double), "hit distances");
+    run.read(S.primOut, prim, n * sizeof(uint32_t), "hit triangles");
+  }
   if (count) sumCounters(run, S.counters, n, visits, tests);
   run.finish();
 }
@@ -200,6 +196,10 @@ void SplitTreeTracer::intersectFirst(const double*, const double*, size_t, doubl
 }
 void SplitTreeTracer::intersectAny(const double*, const double*, size_t, double, double, uint8_t*, uint64_t*,
                                    uint64_t*, std::vector<KernelTiming>*) {
+  unavailable();
+}
+void SplitTreeTracer::trace(const double*, const double*, size_t, double, double, double*, uint32_t*, uint8_t*,
+                            uint64_t*, uint64_t*, std::vector<KernelTiming>*) {
   unavailable();
 }
 

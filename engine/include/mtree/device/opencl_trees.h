@@ -51,6 +51,9 @@ class SplitTreeTracer {
   Context& context() const;
 
  private:
+  // One batch through the first-hit kernel (hit == nullptr) or the any-hit kernel.
+  void trace(const double* orig, const double* dirs, size_t n, double tmin, double tmax, double* t, uint32_t* prim,
+             uint8_t* hit, uint64_t* visits, uint64_t* tests, std::vector<KernelTiming>* kernels);
   struct State;
   std::shared_ptr<Context> ctx_;
   std::unique_ptr<State> st_;

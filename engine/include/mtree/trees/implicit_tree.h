@@ -53,6 +53,7 @@
 #include "mtree/core/matrix_tree.h"
 #include "mtree/rays/intersect.h"
 #include "mtree/rays/raycast.h"
+#include "mtree/rays/sah_kdtree.h"
 #include "mtree/trees/split_tree.h"
 
 namespace mtree {
@@ -219,6 +220,12 @@ class ImplicitSplitTree {
     const int a = doublingAxis(level);
     c[a] = 2 * c[a] + side;
   }
+  // Down from node (level, c) over [tMin, tMax] to a leaf (its word returned, level and c moved
+  // to it, tMax to its exit); onSplit(firstSide, ts) at every node the ray crosses, before the
+  // descent takes its first child.
+  template <class OnSplit>
+  uint32_t descend(const Ray& r, int& level, int c[3], double tMin, double& tMax, uint64_t& visits,
+                   OnSplit&& onSplit) const;
   template <class Visitor>
   void walkStack(const Ray& r, Visitor& vis, TraversalStats* st) const;
   template <class Visitor>
@@ -285,6 +292,27 @@ inline bool ImplicitSplitTree::setup(Vec3 o, Vec3 d, double tmin, double tmax, R
   return r.t0 <= r.t1;
 }
 
+template <class OnSplit>
+uint32_t ImplicitSplitTree::descend(const Ray& r, int& level, int c[3], double tMin, double& tMax, uint64_t& visits,
+                                    OnSplit&& onSplit) const {
+  uint32_t w = word(level, c[0], c[1], c[2]);
+  ++visits;
+  while (!isLeaf(w)) {
+    int firstSide;
+    double ts = 0;
+    const int what = decide(w, r, tMin, tMax, firstSide, ts);
+    if (what == kBoth) {
+      onSplit(firstSide, ts);
+      tMax = ts;
+    }
+    child(level, c, what == kSecond ? 1 - firstSide : firstSide);
+    ++level;
+    w = word(level, c[0], c[1], c[2]);
+    ++visits;
+  }
+  return w;
+}
+
 template <class Visitor>
 void ImplicitSplitTree::walkStack(const Ray& r, Visitor& vis, TraversalStats* st) const {
   struct Entry {
@@ -297,28 +325,16 @@ void ImplicitSplitTree::walkStack(const Ray& r, Visitor& vis, TraversalStats* st
   int level = 0, c[3] = {0, 0, 0};
   double tMin = r.t0, tMax = r.t1;
   for (;;) {
-    uint32_t w = word(level, c[0], c[1], c[2]);
-    ++visits;
-    while (!isLeaf(w)) {
-      int firstSide;
-      double ts = 0;
-      const int what = decide(w, r, tMin, tMax, firstSide, ts);
-      if (what == kBoth) {
-        Entry& e = stack[sp++];
-        e.level = level + 1;
-        e.c[0] = c[0];
-        e.c[1] = c[1];
-        e.c[2] = c[2];
-        child(level, e.c, 1 - firstSide);
-        e.tMin = ts;
-        e.tMax = tMax;
-        tMax = ts;
-      }
-      child(level, c, what == kSecond ? 1 - firstSide : firstSide);
-      ++level;
-      w = word(level, c[0], c[1], c[2]);
-      ++visits;
-    }
+    const uint32_t w = descend(r, level, c, tMin, tMax, visits, [&](int firstSide, double ts) {
+      Entry& e = stack[sp++];
+      e.level = level + 1;
+      e.c[0] = c[0];
+      e.c[1] = c[1];
+      e.c[2] = c[2];
+      child(level, e.c, 1 - firstSide);
+      e.tMin = ts;
+      e.tMax = tMax;
+    });
     ++leaves;
     uint32_t count;
     const uint32_t* ids = leafPrims(w, count);
@@ -345,18 +361,7 @@ void ImplicitSplitTree::walkRestart(const Ray& r, Visitor& vis, TraversalStats* 
   for (;;) {
     int level = 0, c[3] = {0, 0, 0};
     double tMax = r.t1;
-    uint32_t w = word(0, 0, 0, 0);
-    ++visits;
-    while (!isLeaf(w)) {
-      int firstSide;
-      double ts = 0;
-      const int what = decide(w, r, tMin, tMax, firstSide, ts);
-      if (what == kBoth) tMax = ts;
-      child(level, c, what == kSecond ? 1 - firstSide : firstSide);
-      ++level;
-      w = word(level, c[0], c[1], c[2]);
-      ++visits;
-    }
+    const uint32_t w = descend(r, level, c, tMin, tMax, visits, [](int, double) {});
     ++leaves;
     uint32_t count;
     const uint32_t* ids = leafPrims(w, count);
@@ -381,21 +386,8 @@ void ImplicitSplitTree::walkBacktrack(const Ray& r, Visitor& vis, TraversalStats
     for (int k = 0; k < 3; ++k) a[k] = c[k] >> (logDim(level, k) - logDim(p, k));
   };
   for (;;) {
-    uint32_t w = word(level, c[0], c[1], c[2]);
-    ++visits;
-    while (!isLeaf(w)) {
-      int firstSide;
-      double ts = 0;
-      const int what = decide(w, r, tMin, tMax, firstSide, ts);
-      if (what == kBoth) {
-        pending |= uint64_t(1) << level;
-        tMax = ts;
-      }
-      child(level, c, what == kSecond ? 1 - firstSide : firstSide);
-      ++level;
-      w = word(level, c[0], c[1], c[2]);
-      ++visits;
-    }
+    const uint32_t w =
+        descend(r, level, c, tMin, tMax, visits, [&](int, double) { pending |= uint64_t(1) << level; });
     ++leaves;
     uint32_t count;
     const uint32_t* ids = leafPrims(w, count);
@@ -446,42 +438,11 @@ void ImplicitSplitTree::walk(SplitTraversal traversal, Vec3 o, Vec3 d, double tm
 
 namespace detail {
 
-/// The first-hit and any-hit leaf visitors of the split-plane trees (SahKdTree's, in spirit):
-/// no mailbox (leaves come front to back, so a triangle met again is met with a smaller bound).
-template <TriangleTest Test>
-struct SplitFirstVisitor {
-  const TriangleMesh& mesh;
-  Vec3 o, d;
-  double tmin;
-  RayHit hit;
-  uint64_t tests = 0;
-  SplitFirstVisitor(const TriangleMesh& m, Vec3 oo, Vec3 dd, double t0, double t1) : mesh(m), o(oo), d(dd), tmin(t0) {
-    hit.t = t1;
-  }
-  double cutoff() const { return hit.prim != MT_NULL ? hit.t : std::numeric_limits<double>::infinity(); }
-  bool leaf(const uint32_t* prims, uint32_t count) {
-    firstInList<Test>(mesh, o, d, prims, count, tmin, hit, tests);
-    return false;
-  }
-};
-template <TriangleTest Test>
-struct SplitAnyVisitor {
-  const TriangleMesh& mesh;
-  Vec3 o, d;
-  double tmin, tmax;
-  bool found = false;
-  uint64_t tests = 0;
-  double cutoff() const { return std::numeric_limits<double>::infinity(); }
-  bool leaf(const uint32_t* prims, uint32_t count) {
-    return found = anyInList<Test>(mesh, o, d, prims, count, tmin, tmax, tests);
-  }
-};
-
 /// First hit through any tree with walk(traversal, o, d, tmin, tmax, visitor, stats).
 template <TriangleTest Test, class Tree, class Traversal>
 bool splitFirst(const Tree& tree, const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin, double tmax, RayHit& hit,
                 Traversal trav, TraversalStats* st) {
-  SplitFirstVisitor<Test> vis(mesh, o, d, tmin, tmax);
+  SahFirstVisitor<Test> vis(mesh, o, d, tmin, tmax);  // SahKdTree's leaf visitors (sah_kdtree.h)
   tree.walk(trav, o, d, tmin, tmax, vis, st);
   if (st) st->primTests += vis.tests;
   hit = vis.hit;
@@ -491,7 +452,7 @@ bool splitFirst(const Tree& tree, const TriangleMesh& mesh, Vec3 o, Vec3 d, doub
 template <TriangleTest Test, class Tree, class Traversal>
 bool splitAny(const Tree& tree, const TriangleMesh& mesh, Vec3 o, Vec3 d, double tmin, double tmax, Traversal trav,
               TraversalStats* st) {
-  SplitAnyVisitor<Test> vis{mesh, o, d, tmin, tmax};
+  SahAnyVisitor<Test> vis{mesh, o, d, tmin, tmax};
   tree.walk(trav, o, d, tmin, tmax, vis, st);
   if (st) st->primTests += vis.tests;
   return vis.found;
