@@ -159,7 +159,7 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=2000, help="pixels checked against the brute force")
     ap.add_argument("--blocks", default="0,1,2,4,8,16,32", help="block edges of the storage table (0 = per level)")
     ap.add_argument("--render-blocks", default="0", help="layouts of the implicit kd-tree that are rendered")
-    ap.add_argument("--depths", default="12,16,20,24", help="lower SAH depth limits")
+    ap.add_argument("--depths", default="8,12,16,20,24", help="lower SAH depth limits")
     ap.add_argument("--bsp-bonus", type=float, default=1.0, help="empty bonus of the BSP build")
     ap.add_argument("--bsp-bins", type=int, default=16, help="bins of the BSP build")
     ap.add_argument("--hybrid-scales", default="4,8", help="matrix leaf scales of the hybrid")

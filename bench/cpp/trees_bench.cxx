@@ -2,14 +2,15 @@
 // (bench/trees.py writes the scene file, runs this program and prints the tables).
 //
 //   trees_bench SCENE.bin OUT.json [--samples S] [--blocks 0,1,2,4,8,16,32] [--render-blocks 0,8]
-//               [--depths 12,16,20,24] [--bsp-bonus B] [--bsp-bins N] [--hybrid-scales 4,8]
+//               [--depths 8,12,16,20,24] [--bsp-bonus B] [--bsp-bins N] [--hybrid-scales 4,8]
 //               [--hybrid-depths 8] [--skip-bsp] [--opencl] [--device SEL] [--planes DIR]
 //               [--plane-levels L]
 //
 // Per scene (the first frame of the file):
 //  storage  node bytes of the implicit kd-tree built from the SAH tree (same splits), per layout:
 //           the block shape chosen per level (block 0) and B^3 blocks on every level, against the
-//           pointer SAH tree's 8 bytes a node; per level of the per-level layout: nodes, block
+//           pointer SAH tree's 8 bytes a node, and the same for a complete kd-tree (median splits,
+//           4 triangles a leaf: every level full, the layout's best case); per level of the per-level layout: nodes, block
 //           shape, fill, bytes (and the same level's bytes with 8^3 blocks); the same for the BSP.
 //  depths   SAH trees built with lower depth limits: pointer and implicit bytes, SAH cost, and the
 //           render of both (where "half the storage" holds: shallow trees).
@@ -235,17 +236,66 @@ std::vector<SplitPolygon> leafBoxes(const MatrixTree& t) {
   return out;
 }
 
+/// A complete kd-tree (the best case of the implicit layout: every level full): median splits of
+/// the triangles' centroids on the longest axis of their bounds, down to `leafSize` triangles;
+/// each triangle goes to the side of its centroid. For the storage table only: it is not a tree
+/// a ray could be traced through (a triangle can reach the other side).
+PointerSplitTree medianTree(const TriangleMesh& mesh, uint32_t leafSize) {
+  PointerSplitTree p;
+  if (mesh.size() == 0) return p;
+  Box box;
+  std::vector<Vec3> cent(mesh.size());
+  for (size_t t = 0; t < mesh.size(); ++t) {
+    box.extend(mesh.bounds(t));
+    cent[t] = (mesh.vertex(t, 0) + mesh.vertex(t, 1) + mesh.vertex(t, 2)) * (1.0 / 3.0);
+  }
+  const double anchor[3] = {box.lo.x, box.lo.y, box.lo.z};
+  int e = 0;
+  std::frexp(std::max(box.extent().x, std::max(box.extent().y, box.extent().z)), &e);
+  p.frame = SplitFrame::axes(anchor, std::ldexp(1.0, e + 2), SplitFrame::padUnitOf(box));
+  p.root = box;
+  std::vector<uint32_t> ids(mesh.size());
+  for (uint32_t t = 0; t < ids.size(); ++t) ids[t] = t;
+  p.nodes.resize(1);
+  std::function<void(uint32_t, size_t, size_t)> node = [&](uint32_t idx, size_t b, size_t n) {
+    if (n <= leafSize) {
+      p.nodes[idx].leaf = true;
+      p.nodes[idx].offset = static_cast<uint32_t>(b);
+      p.nodes[idx].count = static_cast<uint32_t>(n);
+      return;
+    }
+    Box cb;
+    for (size_t i = b; i < b + n; ++i) cb.extend(cent[ids[i]]);
+    const Vec3 ext = cb.extent();
+    const int a = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+    const size_t m = n / 2;
+    std::nth_element(ids.begin() + b, ids.begin() + b + m, ids.begin() + b + n,
+                     [&](uint32_t x, uint32_t y) { return cent[x][a] < cent[y][a]; });
+    const uint32_t c = static_cast<uint32_t>(p.nodes.size());
+    p.nodes.resize(c + 2);
+    p.nodes[idx].leaf = false;
+    p.nodes[idx].dir = static_cast<uint8_t>(a);
+    p.nodes[idx].s = p.frame.toFloat(a, cent[ids[b + m]][a]);
+    p.nodes[idx].child = c;
+    node(c, b, m);
+    node(c + 1, b + m, n - m);
+  };
+  node(0, 0, ids.size());
+  p.prims = ids;
+  return p;
+}
+
 int run(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr,
                  "usage: trees_bench SCENE.bin OUT.json [--samples S] [--blocks 0,1,2,4,8,16,32] [--render-blocks 0]\n"
-                 "       [--depths 12,16,20,24] [--bsp-bonus B] [--bsp-bins N] [--hybrid-scales 4,8]\n"
-                 "       [--hybrid-depths 8] [--skip-bsp] [--opencl] [--device SEL]\n");
+                 "       [--depths 8,12,16,20,24] [--bsp-bonus B] [--bsp-bins N] [--hybrid-scales 4,8]\n"
+                 "       [--hybrid-depths 8] [--skip-bsp] [--opencl] [--device SEL] [--planes DIR] [--plane-levels L]\n");
     return 2;
   }
   const std::string scenePath = argv[1], outPath = argv[2];
   int samples = 2000;
-  std::vector<int> blocks = {0, 1, 2, 4, 8, 16, 32}, renderBlocks = {0}, depths = {12, 16, 20, 24};
+  std::vector<int> blocks = {0, 1, 2, 4, 8, 16, 32}, renderBlocks = {0}, depths = {8, 12, 16, 20, 24};
   std::vector<int> hybridDepths = {8};
   std::vector<double> hybridScales = {4, 8};
   BspBuildOptions bspOpt;
@@ -332,6 +382,7 @@ int run(int argc, char** argv) {
     renderRow(row, SahTracer{sah, mesh, tr});
   }
   storage = storageRows("kd", sahPtr, blocks);
+  for (const std::string& r : storageRows("kd-complete", medianTree(mesh, 4), blocks)) storage.push_back(r);
   std::unique_ptr<ImplicitSplitTree> kdPerLevel;
   RenderResult kdBacktrackRender;
   for (int B : renderBlocks) {
