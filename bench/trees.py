@@ -12,6 +12,7 @@ pixel. Tables are printed per mesh and written as markdown (--md) and JSON (--js
     .venv/bin/python bench/trees.py --scene bunny --opencl           # one, plus the PoCL kernel
     .venv/bin/python bench/trees.py --md docs/trees_tables.md --json out/bench_trees.json
     xvfb-run -a .venv/bin/python bench/trees.py --pictures docs/images    # the split-plane pictures
+    .venv/bin/python bench/trees.py --summary out/bench_trees.json      # docs/trees.md's tables
 
 Cameras are bench/rays.py's (fit_camera, its per-scene views) at --size (default 512 x 512).
 """
@@ -112,6 +113,80 @@ def run_scene(spec: str, args) -> tuple[str, dict]:
     return name, res
 
 
+def summary(results: dict) -> str:
+    """The cross-mesh tables of docs/trees.md from a --json result: one row per mesh."""
+    storage, render, bsp, hybrid, cl = [], [], [], [], []
+    for name, res in results["scenes"].items():
+        st = {(r["tree"], r["layout"]): r for r in res["storage"]}
+        rd = {(r["method"], r["traversal"], r["layout"]): r for r in res["render"]}
+        sah = rd[("sah-pointer", "stack", "pointer")]
+        kd = {t: rd[("implicit-kd", t, "per-level")] for t in ("stack", "restart", "backtrack")}
+        ratio = {k: st[("kd", k)]["node_bytes_ratio"] for k in ("per-level", "1^3", "2^3", "4^3", "8^3", "32^3")}
+        depth12 = next((d for d in res["depths"] if d["max_depth"] == 12), None)
+        storage.append({"mesh": name, "sah_nodes": sah["nodes"], "pointer_node_MiB": _mib(8 * sah["nodes"]),
+                        "implicit_node_MiB": _mib(st[("kd", "per-level")]["implicit_node_bytes"]),
+                        "per_level": ratio["per-level"], "B=1": ratio["1^3"], "B=2": ratio["2^3"],
+                        "B=4": ratio["4^3"], "B=8": ratio["8^3"], "B=32": ratio["32^3"],
+                        "depth_12": depth12["node_bytes_ratio"] if depth12 else None,
+                        "complete_tree": st[("kd-complete", "per-level")]["node_bytes_ratio"],
+                        "bsp_per_level": st[("bsp-13", "per-level")]["node_bytes_ratio"]
+                        if ("bsp-13", "per-level") in st else None})
+        row = {"mesh": name, "sah_stack_ms": sah["render_cpu_ms"],
+               "sah_restart_x": rd[("sah-pointer", "restart", "pointer")]["render_cpu_ms"] / sah["render_cpu_ms"]}
+        for t, r in kd.items():
+            row[f"implicit_{t}_x"] = r["render_cpu_ms"] / sah["render_cpu_ms"]
+        row.update({"visits_stack": sah["node_visits_per_ray"], "visits_backtrack": kd["backtrack"]["node_visits_per_ray"],
+                    "tests": sah["tri_tests_per_ray"], "sah_build_ms": sah["build_cpu_ms"],
+                    "convert_ms": kd["stack"]["convert_cpu_ms"],
+                    "mismatches": sum(r["mismatches_vs_brute_force"] for r in res["render"])})
+        render.append(row)
+        if ("bsp-13", "stack", "per-level") in rd:
+            b13, b3 = rd[("bsp-13", "stack", "per-level")], rd[("bsp-3", "backtrack", "per-level")]
+            b13b = rd[("bsp-13", "backtrack", "per-level")]
+            bsp.append({"mesh": name, "bsp13_stack_ms": b13["render_cpu_ms"],
+                        "vs_implicit_kd_stack": b13["render_cpu_ms"] / kd["stack"]["render_cpu_ms"],
+                        "bsp13_backtrack_ms": b13b["render_cpu_ms"],
+                        "bsp3_backtrack_ms": b3["render_cpu_ms"],
+                        "tests_bsp13": b13["tri_tests_per_ray"], "tests_bsp3": b3["tri_tests_per_ray"],
+                        "tests_sah": sah["tri_tests_per_ray"], "visits_bsp13": b13["node_visits_per_ray"],
+                        "diagonal_share": res["bsp"]["diagonal_splits"] / max(1, res["bsp"]["diagonal_splits"]
+                                                                              + res["bsp"]["axis_splits"]),
+                        "bsp13_build_ms": b13["build_cpu_ms"], "bsp3_build_ms": b3["build_cpu_ms"],
+                        "bsp13_MiB": _mib(b13["bytes"])})
+        octree = rd[("matrix-octree", "matrix", "")]
+        for r in res["render"]:
+            if r["method"] != "hybrid":
+                continue
+            hybrid.append({"mesh": name, "layout": r["layout"], "octree_build_ms": octree["build_cpu_ms"],
+                           "hybrid_build_ms": r["build_cpu_ms"], "kd_part_ms": r["convert_cpu_ms"],
+                           "sah_build_ms": sah["build_cpu_ms"], "octree_ms": octree["render_cpu_ms"],
+                           "hybrid_ms": r["render_cpu_ms"], "sah_stack_ms": sah["render_cpu_ms"],
+                           "hybrid_vs_octree": r["render_cpu_ms"] / octree["render_cpu_ms"],
+                           "hybrid_vs_sah": r["render_cpu_ms"] / sah["render_cpu_ms"],
+                           "tests_octree": octree["tri_tests_per_ray"], "tests_hybrid": r["tri_tests_per_ray"],
+                           "MiB_octree": _mib(octree["bytes"]), "MiB_hybrid": _mib(r["bytes"])})
+        for r in res["opencl"]:
+            cl.append({"mesh": name, "tree": r["method"], "pixels": r["pixels"],
+                       "hit_mismatches_vs_cpu": r["hit_mismatches_vs_cpu"],
+                       "shading_mismatches_vs_cpu": r["shading_mismatches_vs_cpu"],
+                       "visits_equal": r["node_visits_cpu"] == r["node_visits_device"],
+                       "mismatches_vs_brute_force": r["mismatches_vs_brute_force"],
+                       "device_wall_ms": r["render_wall_ms"]})
+
+    def cols(rows):
+        return list(rows[0]) if rows else []
+
+    parts = ["Storage: implicit kd node bytes / pointer SAH node bytes (same splits), per layout; "
+             "`depth_12`: the SAH tree cut at depth 12; `complete_tree`: a median-split kd-tree.\n",
+             markdown(storage, cols(storage)),
+             "\nRender (one thread, CPU ms; `_x`: time / the pointer SAH tree's stack traversal):\n",
+             markdown(render, cols(render)),
+             "\nBSP (13 directions) against the kd-trees:\n", markdown(bsp, cols(bsp)),
+             "\nHybrid against the matrix octree and the SAH tree:\n", markdown(hybrid, cols(hybrid)),
+             "\nStackless kernel on the OpenCL device against the CPU (every pixel):\n", markdown(cl, cols(cl))]
+    return "\n".join(parts)
+
+
 def pictures(spec: str, out_dir: str, size, levels: int) -> list:
     """The implicit kd-tree's, the BSP tree's and the hybrid's split planes (levels <= `levels`)
     within their cells, over the mesh, as PNGs (pyvista off screen; run under xvfb-run)."""
@@ -172,7 +247,12 @@ def main(argv=None) -> int:
     ap.add_argument("--pictures", help="only write the pictures of the split planes into this folder "
                     "(e.g. docs/images; run under xvfb-run -a)")
     ap.add_argument("--picture-levels", type=int, default=7, help="deepest level of planes drawn")
+    ap.add_argument("--summary", metavar="JSON", help="only print docs/trees.md's cross-mesh tables from a --json result")
     args = ap.parse_args(argv)
+    if args.summary:
+        with open(args.summary) as f:
+            print(summary(json.load(f)))
+        return 0
     if not os.path.exists(BIN):
         raise SystemExit(f"{BIN} not found: build the project first (cmake --build build)")
     if args.pictures:
