@@ -310,6 +310,10 @@ TEST(ImplicitKd, BadInputIsRefused) {
   }
   EXPECT_THROW(tree.build(deep, one), std::length_error);
   EXPECT_TRUE(tree.empty());
+  // A triangle the mesh does not have.
+  PointerSplitTree wrongMesh = p;
+  wrongMesh.prims[0] = 7;
+  EXPECT_THROW(tree.build(wrongMesh, one), std::invalid_argument);
   // A direction the frame does not have, a child past the end.
   PointerSplitTree bad = deep;
   bad.nodes[0].dir = 3;

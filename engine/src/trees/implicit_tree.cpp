@@ -227,6 +227,10 @@ void ImplicitSplitTree::build(const PointerSplitTree& src, const TriangleMesh& m
   root_ = src.root;
   tagMask_ = frame_.tagMask();
   if (src.nodes.empty()) return;
+  for (uint32_t id : src.prims)
+    if (id >= mesh.size())
+      throw std::invalid_argument("ImplicitSplitTree: the tree lists triangle " + std::to_string(id) + " but the mesh has " +
+                                  std::to_string(mesh.size()));
   redistributed_ = !allEncodable(src);
   Collected col = Collector(src, mesh, redistributed_).run();
   cost_ = costOfCollected(col, blockEdge);

@@ -104,9 +104,10 @@ class ImplicitSplitTree {
   /// 1..32 (a power of two): B^3 blocks on every level. Planes that are not encodable are rounded
   /// (SplitFrame::encode) and the triangles redistributed down the rounded planes (see
   /// split_tree.h, Robustness); redistributed() then says so. Throws std::invalid_argument for a
-  /// bad blockEdge or a tree whose frame has too many directions for its tag bits,
-  /// std::length_error for a tree deeper than kMaxLevel (the tree is then empty). Replaces any
-  /// previous tree.
+  /// bad blockEdge, a frame with too many directions for its tag bits, a child, direction or
+  /// triangle range that does not exist, or a triangle the mesh does not have;
+  /// std::length_error for a tree deeper than kMaxLevel or a layout past 4 GiB (the tree is then
+  /// empty). Replaces any previous tree.
   void build(const PointerSplitTree& src, const TriangleMesh& mesh, int blockEdge = 0);
   /// The bytes build(src, mesh, blockEdge) would take, level by level, without allocating them
   /// (for block edges whose pointer matrices would not fit in memory). Same exceptions.
