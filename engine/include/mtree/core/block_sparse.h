@@ -37,16 +37,25 @@ class BlockSparseMatrix {
   }
 
   void reset(int nx, int ny, int nz, int blockEdge, T emptyValue) {
-    if (nx < 1 || ny < 1 || nz < 1) throw std::invalid_argument("BlockSparseMatrix: dims must be >= 1");
     if (blockEdge < 1 || blockEdge > (1 << MT_MAX_LOG_BLOCK) || (blockEdge & (blockEdge - 1)))
       throw std::invalid_argument("BlockSparseMatrix: block edge must be a power of two in [1, 32]");
     const int lb = ceilLog2(static_cast<uint64_t>(blockEdge));
+    const int logBlock[3] = {lb, lb, lb};
+    resetShape(nx, ny, nz, logBlock, emptyValue);
+  }
+  /// reset() with a block shape of 2^logBlock[a] entries along axis a (each in
+  /// [0, MT_MAX_LOG_BLOCK], shrunk to the axis as in reset()): blocks need not be cubes.
+  void resetShape(int nx, int ny, int nz, const int logBlock[3], T emptyValue) {
+    if (nx < 1 || ny < 1 || nz < 1) throw std::invalid_argument("BlockSparseMatrix: dims must be >= 1");
+    for (int a = 0; a < 3; ++a)
+      if (logBlock[a] < 0 || logBlock[a] > MT_MAX_LOG_BLOCK)
+        throw std::invalid_argument("BlockSparseMatrix: log2 of a block edge must be in [0, 5]");
     const int n[3] = {nx, ny, nz};
     desc_ = MtSparseDesc{};
     uint64_t ptrCount = 1;
     for (int a = 0; a < 3; ++a) {
       desc_.dims[a] = n[a];
-      desc_.logBlock[a] = std::min(lb, ceilLog2(static_cast<uint64_t>(n[a])));
+      desc_.logBlock[a] = std::min(logBlock[a], ceilLog2(static_cast<uint64_t>(n[a])));
       desc_.ptrDims[a] = static_cast<int>((int64_t(n[a]) + (int64_t(1) << desc_.logBlock[a]) - 1) >> desc_.logBlock[a]);
       // Checked before multiplying, so a huge matrix cannot wrap around 2^64.
       if (ptrCount > (uint64_t(MT_NULL) - 1) / static_cast<uint64_t>(desc_.ptrDims[a]))

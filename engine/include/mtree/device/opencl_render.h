@@ -18,7 +18,10 @@ namespace mtree {
 // camera rays, light, eps offset and shading. A shadow ray is the segment render() traces, from
 // q = p + n*eps to q + (light - p): direction (light - p), t in [0, 1] (the batch kernel takes one
 // t range for all rays). nodeVisits/primTests per pixel stay 0 (the kernels give sums only).
-inline RenderResult renderOpenCL(ocl::Tracer& tracer, const TriangleMesh& mesh, const Box& sceneBox, const Camera& cam,
+/// DeviceTracer: ocl::Tracer, or any device tracer with its intersectFirst / intersectAny
+/// (ocl::SplitTreeTracer, opencl_trees.h).
+template <class DeviceTracer>
+inline RenderResult renderOpenCL(DeviceTracer& tracer, const TriangleMesh& mesh, const Box& sceneBox, const Camera& cam,
                           const RenderOptions& opt, double* traceMs = nullptr) {
   RenderResult r = blankRenderResult(cam);
   const int W = cam.width, Hh = cam.height;

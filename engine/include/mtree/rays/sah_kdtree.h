@@ -181,6 +181,10 @@ class SahKdTree {
   const Box& rootBox() const { return root_; }
   /// World coordinate of the plane stored as float `s` on `axis`.
   double planeWorld(int axis, float s) const { return anchor_[axis] + static_cast<double>(s) * scale_; }
+  /// The frame of planeWorld(): anchor per axis and the common scale (for copies of the tree that
+  /// must place every plane where this one does, bit for bit).
+  double planeAnchor(int axis) const { return anchor_[axis]; }
+  double planeScale() const { return scale_; }
 
   /// Closest hit with t in [tmin, tmax]; ties (equal t) go to the smaller triangle id, as in
   /// intersectFirstBruteForce. `shortStack` is ShortStack's K (0..kMaxShortStack; 0 = push-down
