@@ -1,6 +1,6 @@
 // OpenCL host code, part 4: volume ray casting on the device (opencl/volume.cl) over an uploaded
 // BlockSparseVolume. The parameters are computed here exactly as renderVolume() computes them
-// (engine/src/volume/volume.cpp): camera basis, tan of the half angle, the premultiplied table with the
+// (engine/src/volume/render.cpp): camera basis, tan of the half angle, the premultiplied table with the
 // opacity corrected for the step, the table's float lo/scale; the kernel does the rest per ray.
 #ifdef MATRIXTREE_HAVE_OPENCL
 

@@ -293,8 +293,7 @@ struct VolumeRenderOptions {
   int threads = 0;                   // 0 = OpenMP's default
   /// UInt8/UInt16 storage, float, unshaded: march 8 samples at a time with AVX2 where the CPU has
   /// it (chosen at run time); every storage: set perspective rays up 4 at a time with AVX2. false:
-  /// the SSE2 marcher and the scalar set-up. Both give the same image bit for bit; the environment
-  /// variable MATRIXTREE_VOLUME_SIMD=sse2 also forces the SSE2 ones.
+  /// the SSE2 marcher and the scalar set-up. Both give the same image bit for bit.
   bool vectorized = true;
 };
 
@@ -338,7 +337,8 @@ inline float earlyTerminationThreshold(const VolumeRenderOptions& opt) {
 std::vector<float> upsampleRGBA(const std::vector<float>& small, int w, int h, int W, int H, int threads);
 
 // --------------------------------------------------------------------------------------------
-// BlockSparseVolume::build: the typed part (conversion), the rest is in volume.cpp.
+// BlockSparseVolume::build: the typed part (conversion); the classification is in
+// engine/src/volume/classify.cpp.
 
 template <typename T>
 void BlockSparseVolume::build(const T* values, const int dims[3], const TransferTable& tf,
