@@ -297,7 +297,6 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     {
       mtree::VolumeBuildOptions bo;
       bo.sparse = !this->DenseStorage;
-      bo.compactIntegralFloat = true;  // integer-valued float scalars: 8/16-bit bricks, lossless
       bo.threads = this->NumberOfThreads;
       in.Built = false;
       switch (scalars->GetDataType())

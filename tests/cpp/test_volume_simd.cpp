@@ -181,10 +181,8 @@ TEST(VolumeSimd, RealVolumesEqualSse2) {
     ASSERT_TRUE(mtest::readFloatVolume(std::string("volumes/") + files[f], fv)) << files[f];
     const int* dims = fv.dims;
     const TransferTable tf = rampTable(fv.range[0], fv.range[1], 0.25, 0.4, 1 << 16);
-    VolumeBuildOptions o;
-    o.compactIntegralFloat = true;
     BlockSparseVolume vol;
-    vol.build(fv.v.data(), fv.dims, tf, o);
+    vol.build(fv.v.data(), fv.dims, tf);  // integer-valued floats: 8/16-bit bricks (compactIntegralFloat)
     ASSERT_EQ(vol.storage(), storages[f]) << files[f];
     const VolumeGeometry& g = fv.geo;
     const Vec3 lo(g.origin[0], g.origin[1], g.origin[2]);
@@ -244,7 +242,7 @@ TEST(VolumeSimd, OnlyUnshadedFloatRaysOfApronBricksAreVectorized) {
   const TransferTable tf = rampTable(0, 255, 0.3, 0.5);
   BlockSparseVolume compact, flt;
   compact.build(v.data(), n, tf);
-  flt.build(vf.data(), n, tf);
+  flt.build(vf.data(), n, tf, mtest::floatBlocks());
   ASSERT_EQ(flt.storage(), VoxelStorage::Float32);
   const VolumeCamera cam = lookAt({-20, 30, -25}, {10, 9, 8}, 16, 16);
   VolumeRenderOptions opt;

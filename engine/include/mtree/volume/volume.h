@@ -101,10 +101,10 @@ class TransferTable {
 struct VolumeBuildOptions {
   bool sparse = true;   // false: allocate every block (the dense reference, same code path)
   bool compact = true;  // 8/16-bit integer input: keep its width, bricks with an apron (UInt8/UInt16)
-  /// Floating-point input whose values are all integers spanning at most 65535: store it as
-  /// UInt8/UInt16 too (lossless; both back ends read those bricks). Off by default: float input
-  /// keeps the storage its type names.
-  bool compactIntegralFloat = false;
+  /// Input of any other type (float, or integers wider than 16 bits, or any input with compact
+  /// off) whose values are all integers spanning at most 65535: store it as UInt8/UInt16 too
+  /// (lossless; both back ends read those bricks). false: such input keeps Float32 blocks.
+  bool compactIntegralFloat = true;
   int threads = 0;      // 0 = OpenMP's default
 };
 
