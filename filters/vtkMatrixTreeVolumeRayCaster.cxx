@@ -1,5 +1,7 @@
 #include "vtkMatrixTreeVolumeRayCaster.h"
 
+#include "vtkMatrixTreeVolumeTuning.h"
+
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkDataArray.h"
@@ -36,7 +38,8 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   vtkDataArray* Scalars = nullptr;  // identity only, never dereferenced
   vtkPiecewiseFunction* Opacity = nullptr;
   int TableSize = 0;
-  bool Dense = false;
+  bool Dense = false;  // the classification's DenseStorage
+  vtkMatrixTreeVolumeTuning Tuning;
   double Range[2] = { 0, 1 };
   bool Force = false;
 
@@ -96,6 +99,21 @@ void vtkMatrixTreeVolumeRayCaster::SetCamera(vtkCamera* camera)
   this->SetViewAngle(camera->GetViewAngle());
   this->SetParallelProjection(camera->GetParallelProjection() != 0);
   this->SetParallelScale(camera->GetParallelScale());
+}
+
+//------------------------------------------------------------------------------
+void vtkMatrixTreeVolumeRayCaster::SetTuning(const vtkMatrixTreeVolumeTuning& tuning)
+{
+  if (tuning != this->Internals->Tuning)
+  {
+    this->Internals->Tuning = tuning;
+    this->Modified();
+  }
+}
+
+const vtkMatrixTreeVolumeTuning& vtkMatrixTreeVolumeRayCaster::GetTuning() const
+{
+  return this->Internals->Tuning;
 }
 
 //------------------------------------------------------------------------------
@@ -237,7 +255,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
   vtkMatrixTreeVolumeRayCasterInternals& in = *this->Internals;
   const vtkMTimeType inputTime = std::max(input->GetMTime(), scalars->GetMTime());
   const bool rebuild = !in.Built || in.Force || in.Scalars != scalars || in.Opacity != this->ScalarOpacity ||
-    in.TableSize != this->TableSize || in.Dense != this->DenseStorage || inputTime > in.BuildTime ||
+    in.TableSize != this->TableSize || in.Dense != in.Tuning.DenseStorage || inputTime > in.BuildTime ||
     (this->ScalarOpacity && this->ScalarOpacity->GetMTime() > in.BuildTime);
 
   // The lookup table spans the finite scalar range.
@@ -296,7 +314,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     if (rebuild)
     {
       mtree::VolumeBuildOptions bo;
-      bo.sparse = !this->DenseStorage;
+      bo.sparse = !in.Tuning.DenseStorage;
       bo.threads = this->NumberOfThreads;
       in.Built = false;
       switch (scalars->GetDataType())
@@ -309,7 +327,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       in.Scalars = scalars;
       in.Opacity = this->ScalarOpacity;
       in.TableSize = this->TableSize;
-      in.Dense = this->DenseStorage;
+      in.Dense = in.Tuning.DenseStorage;
       in.BuildTime.Modified();
       in.CLUploaded = false;
       this->LastRebuilt = true;
@@ -341,7 +359,8 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     ro.imageSampleDistance = this->ImageSampleDistance;
     ro.earlyTermination = this->EarlyTerminationThreshold;
     ro.doublePrecision = this->DoublePrecision;
-    ro.emptySpaceSkipping = this->EmptySpaceSkipping;
+    ro.emptySpaceSkipping = in.Tuning.EmptySpaceSkipping;
+    ro.vectorized = in.Tuning.Vectorized;
     ro.shade = this->Shade;
     ro.ambient = this->Ambient;
     ro.diffuse = this->Diffuse;
@@ -466,13 +485,11 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "ImageSampleDistance: " << this->ImageSampleDistance << "\n";
   os << indent << "EarlyTerminationThreshold: " << this->EarlyTerminationThreshold << "\n";
   os << indent << "DoublePrecision: " << this->DoublePrecision << "\n";
-  os << indent << "EmptySpaceSkipping: " << this->EmptySpaceSkipping << "\n";
   os << indent << "Shade: " << this->Shade << "\n";
   os << indent << "Ambient: " << this->Ambient << "\n";
   os << indent << "Diffuse: " << this->Diffuse << "\n";
   os << indent << "Specular: " << this->Specular << "\n";
   os << indent << "SpecularPower: " << this->SpecularPower << "\n";
-  os << indent << "DenseStorage: " << this->DenseStorage << "\n";
   os << indent << "Backend: " << this->GetBackendAsString() << "\n";
   os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
   os << indent << "OpenCLDeviceName: " << this->GetOpenCLDeviceName() << "\n";
@@ -493,4 +510,7 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "NumberOfNonFiniteScalars: " << this->NumberOfNonFiniteScalars << "\n";
   os << indent << "VoxelStorage: " << this->VoxelStorage << "\n";
   os << indent << "NumberOfOpenCLUploads: " << this->NumberOfOpenCLUploads << "\n";
+  const vtkMatrixTreeVolumeTuning& t = this->Internals->Tuning;
+  os << indent << "Tuning: EmptySpaceSkipping " << t.EmptySpaceSkipping << ", DenseStorage " << t.DenseStorage
+     << ", Vectorized " << t.Vectorized << "\n";
 }
