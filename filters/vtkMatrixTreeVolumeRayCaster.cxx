@@ -1,5 +1,6 @@
 #include "vtkMatrixTreeVolumeRayCaster.h"
 
+#include "vtkMatrixTreeBackend.h"
 #include "vtkMatrixTreeVolumeTuning.h"
 
 #include "vtkCamera.h"
@@ -43,11 +44,10 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   double Range[2] = { 0, 1 };
   bool Force = false;
 
-  // The OpenCL backend: the device renderer for the selector, and whether it holds the current
+  // The OpenCL backend: the device, its renderer, and whether that holds the current
   // classification (cleared by every rebuild, so a render uploads again only after one).
+  vtkMatrixTreeDevice CLDevice;
   std::unique_ptr<mtree::ocl::VolumeRenderer> CLRenderer;
-  std::string CLSelector;
-  std::string CLDeviceName;
   bool CLUploaded = false;
 
   // The output arrays, kept across renders and reused when nothing else holds them (the pipeline
@@ -57,6 +57,10 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   vtkSmartPointer<vtkFloatArray> RGBAFloat;
   vtkSmartPointer<vtkUnsignedCharArray> RGBA;
 };
+
+static_assert(int(vtkMatrixTreeVolumeRayCaster::CPU) == vtkMatrixTreeBackend::CPU &&
+    int(vtkMatrixTreeVolumeRayCaster::OPENCL) == vtkMatrixTreeBackend::OPENCL,
+  "vtkMatrixTreeVolumeRayCaster's Backend values are the shared ones");
 
 vtkStandardNewMacro(vtkMatrixTreeVolumeRayCaster);
 vtkCxxSetObjectMacro(vtkMatrixTreeVolumeRayCaster, ColorTransferFunction, vtkColorTransferFunction);
@@ -82,7 +86,12 @@ vtkMatrixTreeVolumeRayCaster::~vtkMatrixTreeVolumeRayCaster()
 //------------------------------------------------------------------------------
 const char* vtkMatrixTreeVolumeRayCaster::GetOpenCLDeviceName() const
 {
-  return this->Internals->CLDeviceName.c_str();
+  return this->Internals->CLDevice.GetDeviceName();
+}
+
+const char* vtkMatrixTreeVolumeRayCaster::GetBackendAsString() const
+{
+  return vtkMatrixTreeBackend::Name(this->Backend);
 }
 
 //------------------------------------------------------------------------------
@@ -389,15 +398,10 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     {
       try
       {
-        const std::string selector = this->OpenCLDevice ? this->OpenCLDevice : "";
-        if (!in.CLRenderer || selector != in.CLSelector)
+        if (in.CLDevice.Acquire(this->OpenCLDevice) || !in.CLRenderer)
         {
-          in.CLRenderer.reset();
           in.CLUploaded = false;
-          in.CLDeviceName.clear();
-          in.CLRenderer.reset(new mtree::ocl::VolumeRenderer(mtree::ocl::Context::shared(selector)));
-          in.CLSelector = selector;
-          in.CLDeviceName = in.CLRenderer->context().device().name;
+          in.CLRenderer.reset(new mtree::ocl::VolumeRenderer(in.CLDevice.GetContext()));
         }
         if (!in.CLUploaded)
         {
@@ -490,9 +494,7 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "Diffuse: " << this->Diffuse << "\n";
   os << indent << "Specular: " << this->Specular << "\n";
   os << indent << "SpecularPower: " << this->SpecularPower << "\n";
-  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
-  os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
-  os << indent << "OpenCLDeviceName: " << this->GetOpenCLDeviceName() << "\n";
+  vtkMatrixTreeBackend::Print(os, indent, this->Backend, this->OpenCLDevice, this->GetOpenCLDeviceName());
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   os << indent << "LastBuildTime: " << this->LastBuildTime << "\n";
   os << indent << "LastRenderTime: " << this->LastRenderTime << "\n";
