@@ -21,17 +21,19 @@ TEST(Layout, FieldTypesAre32Bit) {
   EXPECT_EQ(MT_MAX_LEVELS, 64);
 }
 
+/// Uploaded to a device byte for byte: no vtable, no padding games, trivially copyable, aligned
+/// to `align` bytes.
+template <class T>
+void expectPlainOldData(size_t align, const char* name) {
+  EXPECT_TRUE(std::is_standard_layout<T>::value) << name;
+  EXPECT_TRUE(std::is_trivially_copyable<T>::value) << name;
+  EXPECT_EQ(alignof(T), align) << name;
+}
+
 TEST(Layout, StructsArePlainOldData) {
-  // Uploaded to a device byte for byte: no vtable, no padding games, trivially copyable.
-  EXPECT_TRUE(std::is_standard_layout<MtSparseDesc>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtSparseDesc>::value);
-  EXPECT_TRUE(std::is_standard_layout<MtLeafRange>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtLeafRange>::value);
-  EXPECT_TRUE(std::is_standard_layout<MtLevelDesc>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtLevelDesc>::value);
-  EXPECT_EQ(alignof(MtSparseDesc), 4u);
-  EXPECT_EQ(alignof(MtLeafRange), 4u);
-  EXPECT_EQ(alignof(MtLevelDesc), 4u);
+  expectPlainOldData<MtSparseDesc>(4, "MtSparseDesc");
+  expectPlainOldData<MtLeafRange>(4, "MtLeafRange");
+  expectPlainOldData<MtLevelDesc>(4, "MtLevelDesc");
 }
 
 TEST(Layout, LeafRangeIs8Bytes) {
@@ -80,18 +82,10 @@ TEST(Layout, ArraysOfDescriptorsHaveNoGaps) {
 // The kernels' parameter structs: doubles first, then 4-byte fields, each a multiple of 8 bytes,
 // so the device's OpenCL C layout (natural alignment) is the host's.
 TEST(Layout, ParameterStructsArePlainOldData) {
-  EXPECT_TRUE(std::is_standard_layout<MtBuildParams>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtBuildParams>::value);
-  EXPECT_TRUE(std::is_standard_layout<MtTreeGeom>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtTreeGeom>::value);
-  EXPECT_TRUE(std::is_standard_layout<MtVolumeLevel>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtVolumeLevel>::value);
-  EXPECT_TRUE(std::is_standard_layout<MtVolumeParams>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtVolumeParams>::value);
-  EXPECT_EQ(alignof(MtBuildParams), 8u);
-  EXPECT_EQ(alignof(MtTreeGeom), 8u);
-  EXPECT_EQ(alignof(MtVolumeLevel), 4u);
-  EXPECT_EQ(alignof(MtVolumeParams), 8u);
+  expectPlainOldData<MtBuildParams>(8, "MtBuildParams");
+  expectPlainOldData<MtTreeGeom>(8, "MtTreeGeom");
+  expectPlainOldData<MtVolumeLevel>(4, "MtVolumeLevel");
+  expectPlainOldData<MtVolumeParams>(8, "MtVolumeParams");
 }
 
 TEST(Layout, BuildParamsAre96Bytes) {

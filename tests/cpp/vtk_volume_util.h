@@ -28,6 +28,14 @@
 
 namespace mtest {
 
+/// A reader of type R for `path`.
+template <class R>
+vtkSmartPointer<vtkAlgorithm> fileReader(const std::string& path) {
+  auto r = vtkSmartPointer<R>::New();
+  r->SetFileName(path.c_str());
+  return r;
+}
+
 /// matrixtree.read_volume: .mhd/.mha, .nii/.nii.gz, .slc, .vti or legacy .vtk; the first
 /// component of multi-component scalars. Throws std::runtime_error when there are no scalars.
 inline vtkSmartPointer<vtkImageData> readVolume(const std::string& path) {
@@ -35,29 +43,12 @@ inline vtkSmartPointer<vtkImageData> readVolume(const std::string& path) {
     return path.size() >= e.size() && path.compare(path.size() - e.size(), e.size(), e) == 0;
   };
   vtkSmartPointer<vtkAlgorithm> reader;
-  if (endsWith(".mhd") || endsWith(".mha")) {
-    auto r = vtkSmartPointer<vtkMetaImageReader>::New();
-    r->SetFileName(path.c_str());
-    reader = r;
-  } else if (endsWith(".nii") || endsWith(".nii.gz")) {
-    auto r = vtkSmartPointer<vtkNIFTIImageReader>::New();
-    r->SetFileName(path.c_str());
-    reader = r;
-  } else if (endsWith(".slc")) {
-    auto r = vtkSmartPointer<vtkSLCReader>::New();
-    r->SetFileName(path.c_str());
-    reader = r;
-  } else if (endsWith(".vti")) {
-    auto r = vtkSmartPointer<vtkXMLImageDataReader>::New();
-    r->SetFileName(path.c_str());
-    reader = r;
-  } else if (endsWith(".vtk")) {
-    auto r = vtkSmartPointer<vtkStructuredPointsReader>::New();
-    r->SetFileName(path.c_str());
-    reader = r;
-  } else {
-    throw std::runtime_error("unknown volume format: " + path);
-  }
+  if (endsWith(".mhd") || endsWith(".mha")) reader = fileReader<vtkMetaImageReader>(path);
+  else if (endsWith(".nii") || endsWith(".nii.gz")) reader = fileReader<vtkNIFTIImageReader>(path);
+  else if (endsWith(".slc")) reader = fileReader<vtkSLCReader>(path);
+  else if (endsWith(".vti")) reader = fileReader<vtkXMLImageDataReader>(path);
+  else if (endsWith(".vtk")) reader = fileReader<vtkStructuredPointsReader>(path);
+  else throw std::runtime_error("unknown volume format: " + path);
   reader->Update();
   auto out = vtkSmartPointer<vtkImageData>::New();
   out->ShallowCopy(vtkImageData::SafeDownCast(reader->GetOutputDataObject(0)));
