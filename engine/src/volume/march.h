@@ -136,7 +136,7 @@ struct FloatFetch {
       : ptr(m.pointers().data()), data(m.data().data()), lb0(m.desc().logBlock[0]), lb1(m.desc().logBlock[1]),
         lb2(m.desc().logBlock[2]), pd0(m.desc().ptrDims[0]), pd1(m.desc().ptrDims[1]), pd2(m.desc().ptrDims[2]),
         e0((1 << lb0) - 1), e1((1 << lb1) - 1), e2((1 << lb2) - 1), bv(m.desc().blockVolume) {}
-  MT_MARCH_INLINE bool enter(int bi, int bj, int bk) {
+  bool enter(int bi, int bj, int bk) {
     // A block edge below DIM only happens on an axis that has a single block: brick = block.
     for (int n = 0; n < 8; ++n) {
       const int x = bi + (n & 1), y = bj + ((n >> 1) & 1), z = bk + (n >> 2);
@@ -237,7 +237,7 @@ inline int tableIndex(const Frame& F, float v) {
 }
 
 /// The t where the index-space ray (o, d) leaves the box [lo, hi] (it is inside at some t).
-MT_MARCH_INLINE double exitT(const double o[3], const double d[3], const double lo[3], const double hi[3]) {
+inline double exitT(const double o[3], const double d[3], const double lo[3], const double hi[3]) {
   double t = std::numeric_limits<double>::infinity();
   for (int a = 0; a < 3; ++a) {
     if (d[a] > 0) t = std::min(t, (hi[a] - o[a]) / d[a]);
@@ -272,6 +272,18 @@ MT_MARCH_INLINE int coarsestInvisible(const BlockSparseVolume& vol, int levels, 
   while (empty + 1 < levels && !vol.nodeVisible(empty + 1, bi >> (empty + 1), bj >> (empty + 1), bk >> (empty + 1)))
     ++empty;
   return empty;
+}
+
+/// The corners and fractions of the cell of position (x, y, z), clamped into the grid (clampCell);
+/// false where the cell is invisible. The marchers' rare path (the grid's far faces, round-off
+/// across a brick face): kept out of their loops.
+#if defined(__GNUC__)
+__attribute__((noinline, cold)) inline
+#endif
+bool clampedCorners(const BlockSparseVolume& vol, const int n[3], double x, double y, double z, float cc[8],
+                    double f[3]) {
+  const int ci = clampCell(x, n[0], f[0]), cj = clampCell(y, n[1], f[1]), ck = clampCell(z, n[2], f[2]);
+  return vol.cellCorners(ci, cj, ck, cc);
 }
 
 /// Marches one ray over samples k = 0..kEnd at t_k = t0 + k dt, position o + d t_k (index
@@ -336,8 +348,7 @@ void march(const Frame& F, Fetch fetch, const double o[3], const double d[3], do
       } else {
         // Round-off put the sample in a neighbouring brick, or it needs clamping: general path.
         double f[3];
-        const int ci = clampCell(x, F.n[0], f[0]), cj = clampCell(y, F.n[1], f[1]), ck = clampCell(z, F.n[2], f[2]);
-        if (!vol.cellCorners(ci, cj, ck, cc)) continue;
+        if (!clampedCorners(vol, F.n, x, y, z, cc, f)) continue;
         fx = R(f[0]), fy = R(f[1]), fz = R(f[2]);
         offset = 0.f;
       }
