@@ -1,5 +1,6 @@
 #include "vtkMatrixTree.h"
 
+#include "vtkMatrixTreeBackend.h"
 #include "vtkMatrixTreeInternals.h"
 
 #include "vtkDataArray.h"
@@ -19,15 +20,17 @@
 #include <vector>
 #include <limits>
 
-// The OpenCL backend's objects: the device context, the builder (its device buffers are reused
-// by every rebuild) and the tracer that holds the last OpenCL-built tree for the queries.
+static_assert(int(vtkMatrixTree::CPU) == vtkMatrixTreeBackend::CPU &&
+    int(vtkMatrixTree::OPENCL) == vtkMatrixTreeBackend::OPENCL,
+  "vtkMatrixTree's Backend values are the shared ones");
+
+// The OpenCL backend's objects: the device, the builder (its device buffers are reused by every
+// rebuild) and the tracer that holds the last OpenCL-built tree for the queries.
 struct vtkMatrixTreeOpenCL
 {
-  std::shared_ptr<mtree::ocl::Context> Context;
+  vtkMatrixTreeDevice Device;
   std::unique_ptr<mtree::ocl::Builder> Builder;
   std::unique_ptr<mtree::ocl::Tracer> Tracer;
-  std::string Selector;
-  std::string DeviceName;
   bool TreeOnDevice = false;
   std::vector<mtree::ocl::KernelTiming> Kernels; // of the last build
 };
@@ -90,16 +93,10 @@ bool vtkMatrixTree::Build()
   {
     if (this->Backend == OPENCL)
     {
-      const std::string selector = this->OpenCLDevice ? this->OpenCLDevice : "";
-      if (!cl.Context || selector != cl.Selector)
+      if (cl.Device.Acquire(this->OpenCLDevice) || !cl.Builder || !cl.Tracer)
       {
-        cl.Builder.reset();
-        cl.Tracer.reset();
-        cl.Context = mtree::ocl::Context::shared(selector);
-        cl.Selector = selector;
-        cl.DeviceName = cl.Context->device().name;
-        cl.Builder.reset(new mtree::ocl::Builder(cl.Context));
-        cl.Tracer.reset(new mtree::ocl::Tracer(cl.Context));
+        cl.Builder.reset(new mtree::ocl::Builder(cl.Device.GetContext()));
+        cl.Tracer.reset(new mtree::ocl::Tracer(cl.Device.GetContext()));
       }
       cl.Builder->build(in.Mesh, opt, in.Tree, &in.Stats, &cl.Kernels);
       cl.Tracer->upload(in.Tree, in.Mesh);
@@ -356,9 +353,7 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";
   os << indent << "LeafScale: " << this->LeafScale << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
-  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
-  os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
-  os << indent << "OpenCLDeviceName: " << this->GetOpenCLDeviceName() << "\n";
+  vtkMatrixTreeBackend::Print(os, indent, this->Backend, this->OpenCLDevice, this->GetOpenCLDeviceName());
   os << indent << "ConversionTime: " << this->ConversionTime << " ms\n";
   os << indent << "LastNodeVisits: " << this->LastNodeVisits << "\n";
   os << indent << "LastTriangleTests: " << this->LastTriangleTests << "\n";
@@ -376,7 +371,12 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
 //------------------------------------------------------------------------------
 const char* vtkMatrixTree::GetOpenCLDeviceName() const
 {
-  return this->OpenCL->DeviceName.c_str();
+  return this->OpenCL->Device.GetDeviceName();
+}
+
+const char* vtkMatrixTree::GetBackendAsString() const
+{
+  return vtkMatrixTreeBackend::Name(this->Backend);
 }
 
 mtree::ocl::Tracer* vtkMatrixTree::GetOpenCLTracer()

@@ -1,5 +1,6 @@
 #include "vtkMatrixTreeLocator.h"
 
+#include "vtkMatrixTreeBackend.h"
 #include "vtkMatrixTreeLocatorProcessor.h"
 #include "vtkMatrixTreeLocatorTuning.h"
 
@@ -63,9 +64,20 @@ const vtkMatrixTreeLocatorTuning& vtkMatrixTreeLocator::GetTuning() const
   return this->Processor->Tuning;
 }
 
+static_assert(int(vtkMatrixTreeLocator::CPU) == vtkMatrixTreeBackend::CPU &&
+    int(vtkMatrixTreeLocator::OPENCL) == vtkMatrixTreeBackend::OPENCL,
+  "vtkMatrixTreeLocator's Backend values are vtkMatrixTreeBackend's");
+
+//------------------------------------------------------------------------------
+const char* vtkMatrixTreeLocator::GetBackendAsString() const
+{
+  return vtkMatrixTreeBackend::Name(this->Backend);
+}
+
+//------------------------------------------------------------------------------
 const char* vtkMatrixTreeLocator::GetOpenCLDeviceName()
 {
-  return this->Processor->CLDeviceName.c_str();
+  return this->Processor->CLDevice.GetDeviceName();
 }
 
 const char* vtkMatrixTreeLocator::GetLastFindCellsPhases()
@@ -478,9 +490,7 @@ void vtkMatrixTreeLocator::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LeafScale: " << this->LeafScale << "\n";
   os << indent << "MaxCandidates: " << this->MaxCandidates << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
-  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
-  os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
-  os << indent << "OpenCLDeviceName: " << p.CLDeviceName << "\n";
+  vtkMatrixTreeBackend::Print(os, indent, this->Backend, this->OpenCLDevice, p.CLDevice.GetDeviceName());
   os << indent << "NumberOfOpenCLUploads: " << this->NumberOfOpenCLUploads << "\n";
   os << indent << "LastNumberOfHostResumes: " << this->LastNumberOfHostResumes << "\n";
   os << indent << "LastNumberOfUnconfirmedCells: " << this->LastNumberOfUnconfirmedCells << "\n";

@@ -166,7 +166,7 @@ public:
   vtkGetMacro(Backend, int);
   void SetBackendToCPU() { this->SetBackend(CPU); }
   void SetBackendToOpenCL() { this->SetBackend(OPENCL); }
-  const char* GetBackendAsString() const { return this->Backend == OPENCL ? "opencl" : "cpu"; }
+  const char* GetBackendAsString() const;
   ///@}
 
   ///@{

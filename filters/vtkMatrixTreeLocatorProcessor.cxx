@@ -397,14 +397,11 @@ bool vtkMatrixTreeLocatorProcessor::LocateOnDevice(
 {
   this->DeviceStart = Clock::now();
   bool uploaded = false;
-  if (!this->CL || selector != this->CLSelector)
+  if (this->CLDevice.Acquire(selector.c_str()) || !this->CL)
   {
     this->CL.reset();
     this->CLUploaded = false;
-    this->CLDeviceName.clear();
-    this->CL.reset(new mtree::ocl::CellLocator(mtree::ocl::Context::shared(selector)));
-    this->CLSelector = selector;
-    this->CLDeviceName = this->CL->context().device().name;
+    this->CL.reset(new mtree::ocl::CellLocator(this->CLDevice.GetContext()));
   }
   double uploadMs = 0;
   if (!this->CLUploaded)

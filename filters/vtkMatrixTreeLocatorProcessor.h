@@ -10,6 +10,7 @@
 #ifndef vtkMatrixTreeLocatorProcessor_h
 #define vtkMatrixTreeLocatorProcessor_h
 
+#include "vtkMatrixTreeBackend.h"
 #include "vtkMatrixTreeCellSetSource.h"
 #include "vtkMatrixTreeLocatorTuning.h"
 #include "vtkMatrixTreeQueryStatistics.h"
@@ -167,8 +168,7 @@ public:
   // The OpenCL backend: the device locator for the selector, and whether it holds the current
   // build (cleared by every build, so the device gets the build again only after one).
   std::unique_ptr<mtree::ocl::CellLocator> CL;
-  std::string CLSelector;
-  std::string CLDeviceName;
+  vtkMatrixTreeDevice CLDevice; // the OpenCL device of the OPENCL backend
   bool CLUploaded = false;
   std::string FindPhases; // "name ms; ..." of the last OpenCL FindCells
   std::chrono::steady_clock::time_point DeviceStart; // when the last OpenCL FindCells began

@@ -1,6 +1,7 @@
 #include "vtkMatrixTreeRayCaster.h"
 
 #include "vtkMatrixTree.h"
+#include "vtkMatrixTreeBackend.h"
 #include "vtkMatrixTreeInternals.h"
 
 #include "vtkFloatArray.h"
@@ -101,7 +102,7 @@ int vtkMatrixTreeRayCaster::RequestData(
   const bool useSah = this->Accelerator == SAH_KDTREE;
   if (useSah)
   {
-    if (this->Tree->GetBackend() != 0)
+    if (this->Tree->GetBackend() != vtkMatrixTreeBackend::CPU)
     {
       vtkErrorMacro("RequestData: the SAH kd-tree runs on the CPU only; set the backend to cpu.");
       return 0;
@@ -281,7 +282,8 @@ int vtkMatrixTreeRayCaster::GetBackend()
 void vtkMatrixTreeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
 {
   this->Superclass::PrintSelf(os, indent);
-  os << indent << "Backend: " << this->Tree->GetBackendAsString() << "\n";
+  vtkMatrixTreeBackend::Print(
+    os, indent, this->Tree->GetBackend(), this->Tree->GetOpenCLDevice(), this->Tree->GetOpenCLDeviceName());
   os << indent << "Accelerator: " << (this->Accelerator == SAH_KDTREE ? "SAH kd-tree" : "matrix tree") << "\n";
   os << indent << "SAHTraversal: " << this->SAHTraversal << "\n";
   os << indent << "ShortStackSize: " << this->ShortStackSize << "\n";

@@ -1,5 +1,8 @@
 #include "vtkMatrixTreeVolumeRayCaster.h"
 
+#include "vtkMatrixTreeBackend.h"
+#include "vtkMatrixTreeVolumeTuning.h"
+
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkDataArray.h"
@@ -36,15 +39,15 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   vtkDataArray* Scalars = nullptr;  // identity only, never dereferenced
   vtkPiecewiseFunction* Opacity = nullptr;
   int TableSize = 0;
-  bool Dense = false;
+  bool Dense = false;  // the classification's DenseStorage
+  vtkMatrixTreeVolumeTuning Tuning;
   double Range[2] = { 0, 1 };
   bool Force = false;
 
-  // The OpenCL backend: the device renderer for the selector, and whether it holds the current
+  // The OpenCL backend: the device, its renderer, and whether that holds the current
   // classification (cleared by every rebuild, so a render uploads again only after one).
+  vtkMatrixTreeDevice CLDevice;
   std::unique_ptr<mtree::ocl::VolumeRenderer> CLRenderer;
-  std::string CLSelector;
-  std::string CLDeviceName;
   bool CLUploaded = false;
 
   // The output arrays, kept across renders and reused when nothing else holds them (the pipeline
@@ -54,6 +57,10 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   vtkSmartPointer<vtkFloatArray> RGBAFloat;
   vtkSmartPointer<vtkUnsignedCharArray> RGBA;
 };
+
+static_assert(int(vtkMatrixTreeVolumeRayCaster::CPU) == vtkMatrixTreeBackend::CPU &&
+    int(vtkMatrixTreeVolumeRayCaster::OPENCL) == vtkMatrixTreeBackend::OPENCL,
+  "vtkMatrixTreeVolumeRayCaster's Backend values are the shared ones");
 
 vtkStandardNewMacro(vtkMatrixTreeVolumeRayCaster);
 vtkCxxSetObjectMacro(vtkMatrixTreeVolumeRayCaster, ColorTransferFunction, vtkColorTransferFunction);
@@ -79,7 +86,12 @@ vtkMatrixTreeVolumeRayCaster::~vtkMatrixTreeVolumeRayCaster()
 //------------------------------------------------------------------------------
 const char* vtkMatrixTreeVolumeRayCaster::GetOpenCLDeviceName() const
 {
-  return this->Internals->CLDeviceName.c_str();
+  return this->Internals->CLDevice.GetDeviceName();
+}
+
+const char* vtkMatrixTreeVolumeRayCaster::GetBackendAsString() const
+{
+  return vtkMatrixTreeBackend::Name(this->Backend);
 }
 
 //------------------------------------------------------------------------------
@@ -96,6 +108,21 @@ void vtkMatrixTreeVolumeRayCaster::SetCamera(vtkCamera* camera)
   this->SetViewAngle(camera->GetViewAngle());
   this->SetParallelProjection(camera->GetParallelProjection() != 0);
   this->SetParallelScale(camera->GetParallelScale());
+}
+
+//------------------------------------------------------------------------------
+void vtkMatrixTreeVolumeRayCaster::SetTuning(const vtkMatrixTreeVolumeTuning& tuning)
+{
+  if (tuning != this->Internals->Tuning)
+  {
+    this->Internals->Tuning = tuning;
+    this->Modified();
+  }
+}
+
+const vtkMatrixTreeVolumeTuning& vtkMatrixTreeVolumeRayCaster::GetTuning() const
+{
+  return this->Internals->Tuning;
 }
 
 //------------------------------------------------------------------------------
@@ -237,7 +264,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
   vtkMatrixTreeVolumeRayCasterInternals& in = *this->Internals;
   const vtkMTimeType inputTime = std::max(input->GetMTime(), scalars->GetMTime());
   const bool rebuild = !in.Built || in.Force || in.Scalars != scalars || in.Opacity != this->ScalarOpacity ||
-    in.TableSize != this->TableSize || in.Dense != this->DenseStorage || inputTime > in.BuildTime ||
+    in.TableSize != this->TableSize || in.Dense != in.Tuning.DenseStorage || inputTime > in.BuildTime ||
     (this->ScalarOpacity && this->ScalarOpacity->GetMTime() > in.BuildTime);
 
   // The lookup table spans the finite scalar range.
@@ -296,8 +323,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     if (rebuild)
     {
       mtree::VolumeBuildOptions bo;
-      bo.sparse = !this->DenseStorage;
-      bo.compactIntegralFloat = true;  // integer-valued float scalars: 8/16-bit bricks, lossless
+      bo.sparse = !in.Tuning.DenseStorage;
       bo.threads = this->NumberOfThreads;
       in.Built = false;
       switch (scalars->GetDataType())
@@ -310,7 +336,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       in.Scalars = scalars;
       in.Opacity = this->ScalarOpacity;
       in.TableSize = this->TableSize;
-      in.Dense = this->DenseStorage;
+      in.Dense = in.Tuning.DenseStorage;
       in.BuildTime.Modified();
       in.CLUploaded = false;
       this->LastRebuilt = true;
@@ -342,7 +368,8 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     ro.imageSampleDistance = this->ImageSampleDistance;
     ro.earlyTermination = this->EarlyTerminationThreshold;
     ro.doublePrecision = this->DoublePrecision;
-    ro.emptySpaceSkipping = this->EmptySpaceSkipping;
+    ro.emptySpaceSkipping = in.Tuning.EmptySpaceSkipping;
+    ro.vectorized = in.Tuning.Vectorized;
     ro.shade = this->Shade;
     ro.ambient = this->Ambient;
     ro.diffuse = this->Diffuse;
@@ -371,15 +398,10 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     {
       try
       {
-        const std::string selector = this->OpenCLDevice ? this->OpenCLDevice : "";
-        if (!in.CLRenderer || selector != in.CLSelector)
+        if (in.CLDevice.Acquire(this->OpenCLDevice) || !in.CLRenderer)
         {
-          in.CLRenderer.reset();
           in.CLUploaded = false;
-          in.CLDeviceName.clear();
-          in.CLRenderer.reset(new mtree::ocl::VolumeRenderer(mtree::ocl::Context::shared(selector)));
-          in.CLSelector = selector;
-          in.CLDeviceName = in.CLRenderer->context().device().name;
+          in.CLRenderer.reset(new mtree::ocl::VolumeRenderer(in.CLDevice.GetContext()));
         }
         if (!in.CLUploaded)
         {
@@ -467,16 +489,12 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "ImageSampleDistance: " << this->ImageSampleDistance << "\n";
   os << indent << "EarlyTerminationThreshold: " << this->EarlyTerminationThreshold << "\n";
   os << indent << "DoublePrecision: " << this->DoublePrecision << "\n";
-  os << indent << "EmptySpaceSkipping: " << this->EmptySpaceSkipping << "\n";
   os << indent << "Shade: " << this->Shade << "\n";
   os << indent << "Ambient: " << this->Ambient << "\n";
   os << indent << "Diffuse: " << this->Diffuse << "\n";
   os << indent << "Specular: " << this->Specular << "\n";
   os << indent << "SpecularPower: " << this->SpecularPower << "\n";
-  os << indent << "DenseStorage: " << this->DenseStorage << "\n";
-  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
-  os << indent << "OpenCLDevice: " << (this->OpenCLDevice ? this->OpenCLDevice : "(default)") << "\n";
-  os << indent << "OpenCLDeviceName: " << this->GetOpenCLDeviceName() << "\n";
+  vtkMatrixTreeBackend::Print(os, indent, this->Backend, this->OpenCLDevice, this->GetOpenCLDeviceName());
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   os << indent << "LastBuildTime: " << this->LastBuildTime << "\n";
   os << indent << "LastRenderTime: " << this->LastRenderTime << "\n";
@@ -494,4 +512,7 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "NumberOfNonFiniteScalars: " << this->NumberOfNonFiniteScalars << "\n";
   os << indent << "VoxelStorage: " << this->VoxelStorage << "\n";
   os << indent << "NumberOfOpenCLUploads: " << this->NumberOfOpenCLUploads << "\n";
+  const vtkMatrixTreeVolumeTuning& t = this->Internals->Tuning;
+  os << indent << "Tuning: EmptySpaceSkipping " << t.EmptySpaceSkipping << ", DenseStorage " << t.DenseStorage
+     << ", Vectorized " << t.Vectorized << "\n";
 }

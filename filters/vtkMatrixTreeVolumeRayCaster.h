@@ -10,7 +10,7 @@
  * 1-voxel apron in their own width, and only what a visible sample can read is allocated (a cell is visible when
  * the opacity function is non-zero somewhere on its corners' value range); above the blocks, the
  * matrix-tree levels mark which bricks and groups of bricks hold a visible cell, and each ray
- * skips invisible nodes top-down. Skipping is exact: switching it off gives the same image.
+ * skips invisible nodes top-down. Skipping is exact: a sample it passes over has opacity 0.
  *
  * Per ray: samples every SampleDistance (world units) from where the ray enters the volume's
  * bounds, trilinear interpolation, post-classification through a TableSize-entry lookup table
@@ -58,6 +58,9 @@ class vtkCamera;
 class vtkColorTransferFunction;
 class vtkPiecewiseFunction;
 struct vtkMatrixTreeVolumeRayCasterInternals;
+#ifndef __VTK_WRAP__
+struct vtkMatrixTreeVolumeTuning;
+#endif
 
 class MATRIXTREEFILTERS_EXPORT vtkMatrixTreeVolumeRayCaster : public vtkImageAlgorithm
 {
@@ -136,13 +139,6 @@ public:
   ///@}
 
   ///@{
-  /** Skip invisible nodes of the matrix-tree levels (default on; off gives the same image, slower). */
-  vtkSetMacro(EmptySpaceSkipping, bool);
-  vtkGetMacro(EmptySpaceSkipping, bool);
-  vtkBooleanMacro(EmptySpaceSkipping, bool);
-  ///@}
-
-  ///@{
   /** Gradient shading (default off) with a headlight: ambient (0.2), diffuse (0.7), specular
    * (0.2), specular power (10). The gradient is that of the trilinear interpolant. */
   vtkSetMacro(Shade, bool);
@@ -156,13 +152,6 @@ public:
   vtkGetMacro(Specular, double);
   vtkSetClampMacro(SpecularPower, double, 0.0, 128.0);
   vtkGetMacro(SpecularPower, double);
-  ///@}
-
-  ///@{
-  /** Store every block (default off): the dense reference, same code path. */
-  vtkSetMacro(DenseStorage, bool);
-  vtkGetMacro(DenseStorage, bool);
-  vtkBooleanMacro(DenseStorage, bool);
   ///@}
 
   enum Backends
@@ -180,7 +169,7 @@ public:
   vtkGetMacro(Backend, int);
   void SetBackendToCPU() { this->SetBackend(CPU); }
   void SetBackendToOpenCL() { this->SetBackend(OPENCL); }
-  const char* GetBackendAsString() const { return this->Backend == OPENCL ? "opencl" : "cpu"; }
+  const char* GetBackendAsString() const;
   ///@}
 
   ///@{
@@ -238,6 +227,17 @@ public:
   /** Includes the transfer functions' modification times. */
   vtkMTimeType GetMTime() override;
 
+#ifndef __VTK_WRAP__
+  ///@{
+  /**
+   * Developer settings for tests and benchmarks (vtkMatrixTreeVolumeTuning.h, C++ only):
+   * alternatives to the production path that give the same image. Default: the production path.
+   */
+  void SetTuning(const vtkMatrixTreeVolumeTuning& tuning);
+  const vtkMatrixTreeVolumeTuning& GetTuning() const;
+  ///@}
+#endif
+
 protected:
   vtkMatrixTreeVolumeRayCaster();
   ~vtkMatrixTreeVolumeRayCaster() override;
@@ -262,13 +262,11 @@ protected:
   double ImageSampleDistance = 1.0;
   double EarlyTerminationThreshold = 0.99;
   bool DoublePrecision = false;
-  bool EmptySpaceSkipping = true;
   bool Shade = false;
   double Ambient = 0.2;
   double Diffuse = 0.7;
   double Specular = 0.2;
   double SpecularPower = 10.0;
-  bool DenseStorage = false;
   int Backend = CPU;
   char* OpenCLDevice = nullptr;
   int NumberOfThreads = 0;

@@ -12,11 +12,8 @@
  * Every kernel mirrors the loop body of MatrixTreeBuilder<TriangleMesh>::build (builder.h) so
  * that the trees are identical, not just equivalent. */
 
-/* Build parameters, 12 doubles: origin (root.lo), 1 / leaf size, leaf size, padded half size. */
-#define P_ORG 0
-#define P_INV 3
-#define P_LEAF 6
-#define P_HALF 9
+/* The build parameters are one MtBuildParams (engine/include/mtree/core/layout.h): the leaf grid's
+ * origin, 1 / leaf size, leaf size and padded half size, as the CPU builder computes them. */
 
 /* TriangleBoxTester (geometry.h): the 10 non-trivial separating axes computed once. */
 typedef struct {
@@ -62,19 +59,19 @@ inline bool mt_tester_overlaps(const mt_tester* T, mt_v3 c) {
 }
 
 /* Centre of leaf (i, j, k): org + (i + 0.5) * leafSize, per axis. */
-inline mt_v3 mt_cell_centre(__global const double* P, int i, int j, int k) {
-  return mt_v(P[P_ORG] + (i + 0.5) * P[P_LEAF], P[P_ORG + 1] + (j + 0.5) * P[P_LEAF + 1],
-              P[P_ORG + 2] + (k + 0.5) * P[P_LEAF + 2]);
+inline mt_v3 mt_cell_centre(__global const MtBuildParams* P, int i, int j, int k) {
+  return mt_v(P->origin[0] + (i + 0.5) * P->leafSize[0], P->origin[1] + (j + 0.5) * P->leafSize[1],
+              P->origin[2] + (k + 0.5) * P->leafSize[2]);
 }
 
 /* Candidate leaf range of a triangle: its bounding box in leaf cells, clamped. */
-inline void mt_cell_range(__global const double* P, const int dims[3], mt_v3 a, mt_v3 b, mt_v3 c, int lo[3],
+inline void mt_cell_range(__global const MtBuildParams* P, const int dims[3], mt_v3 a, mt_v3 b, mt_v3 c, int lo[3],
                           int hi[3]) {
   for (int ax = 0; ax < 3; ++ax) {
     const double va = mt_at(a, ax), vb = mt_at(b, ax), vc = mt_at(c, ax);
     const double bl = mt_min(mt_min(va, vb), vc), bh = mt_max(mt_max(va, vb), vc);
-    lo[ax] = mt_cell_index((bl - P[P_ORG + ax]) * P[P_INV + ax], 0, dims[ax] - 1);
-    hi[ax] = mt_cell_index((bh - P[P_ORG + ax]) * P[P_INV + ax], 0, dims[ax] - 1);
+    lo[ax] = mt_cell_index((bl - P->origin[ax]) * P->invLeaf[ax], 0, dims[ax] - 1);
+    hi[ax] = mt_cell_index((bh - P->origin[ax]) * P->invLeaf[ax], 0, dims[ax] - 1);
   }
 }
 
@@ -111,7 +108,7 @@ __kernel void mt_bounds(__global const double* pts, __global const uint* tris, u
 /* Step 2. One work-item per triangle: counts[t] = overlapped leaves; masks[t] bit c = verdict
  * of candidate c < 64 (exact mode); marks[block] = 1 for every block holding one of them. */
 __kernel void mt_count_mark(__global const double* pts, __global const uint* tris, uint n,
-                            __global const double* P, MtSparseDesc leafDesc, int exact,
+                            __global const MtBuildParams* P, MtSparseDesc leafDesc, int exact,
                             __global uint* counts, __global ulong* masks, __global uchar* marks) {
   const uint t = get_global_id(0);
   if (t >= n) return;
@@ -121,7 +118,7 @@ __kernel void mt_count_mark(__global const double* pts, __global const uint* tri
   const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
   const bool test = exact && thin < 2;
   mt_tester T;
-  if (test) mt_tester_init(&T, a, b, c, mt_v(P[P_HALF], P[P_HALF + 1], P[P_HALF + 2]));
+  if (test) mt_tester_init(&T, a, b, c, mt_v(P->halfSize[0], P->halfSize[1], P->halfSize[2]));
   uint cnt = 0, cand = 0;
   ulong mask = 0;
   uint lastBlock = MT_NULL;
@@ -153,7 +150,7 @@ __kernel void mt_finish_alloc(__global const uchar* marks, __global uint* ptr, u
 /* Step 6. One work-item per triangle writes its pairs at its scanned offset, in candidate order;
  * beyond the 64 masked candidates the overlap test is repeated (as in builder.h). */
 __kernel void mt_write_pairs(__global const double* pts, __global const uint* tris, uint n,
-                             __global const double* P, MtSparseDesc leafDesc, __global const uint* leafPtr,
+                             __global const MtBuildParams* P, MtSparseDesc leafDesc, __global const uint* leafPtr,
                              int exact, __global const uint* offsets, __global const ulong* masks,
                              __global uint* keys, __global uint* values) {
   const uint t = get_global_id(0);
@@ -167,7 +164,7 @@ __kernel void mt_write_pairs(__global const double* pts, __global const uint* tr
   const bool test = exact && thin < 2;
   const bool big = test && (ulong)(hi[0] - lo[0] + 1) * (ulong)(hi[1] - lo[1] + 1) * (ulong)(hi[2] - lo[2] + 1) > 64;
   mt_tester T;
-  if (big) mt_tester_init(&T, a, b, c, mt_v(P[P_HALF], P[P_HALF + 1], P[P_HALF + 2]));
+  if (big) mt_tester_init(&T, a, b, c, mt_v(P->halfSize[0], P->halfSize[1], P->halfSize[2]));
   for (int k = lo[2]; k <= hi[2]; ++k)
     for (int j = lo[1]; j <= hi[1]; ++j)
       for (int i = lo[0]; i <= hi[0]; ++i, ++cand) {

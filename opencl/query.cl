@@ -6,18 +6,14 @@
  * exact integer step on the exit axis), in doubles, so hits equal the CPU engine's.
  *
  * The tree arrives as flat arrays: levels[l] (MtLevelDesc: shape and where its pointer matrix
- * starts in ptrs and its entries in inner / leaves), geom = root lo (3), root hi (3),
- * 1 / leaf size (3), then the node size of every level (3 per level). */
+ * starts in ptrs and its entries in inner / leaves), and its geometry (MtTreeGeom: the root box,
+ * 1 / leaf size, the node size of every level; engine/include/mtree/core/layout.h). */
 
 #define MT_TREE_PARAMS                                                                            \
   __global const MtLevelDesc *levels, __global const uint *ptrs, __global const uchar *inner,     \
-      __global const MtLeafRange *leaves, __global const double *geom, int H
+      __global const MtLeafRange *leaves, __global const MtTreeGeom *geom, int H
 #define MT_TREE_ARGS levels, ptrs, inner, leaves, geom, H
 
-#define G_LO 0
-#define G_HI 3
-#define G_INV 6
-#define G_CELL 9
 
 typedef struct {
   int level; /* < 0: outside the tree */
@@ -96,10 +92,10 @@ inline bool mt_finite3(mt_v3 a) { return isfinite(a.x) && isfinite(a.y) && isfin
 inline bool mt_leaf_find(MT_TREE_PARAMS, mt_v3 p, mt_node* r) {
   if (!mt_finite3(p)) return false;
   for (int a = 0; a < 3; ++a)
-    if (!(mt_at(p, a) >= geom[G_LO + a] && mt_at(p, a) <= geom[G_HI + a])) return false;
+    if (!(mt_at(p, a) >= geom->lo[a] && mt_at(p, a) <= geom->hi[a])) return false;
   int L[3];
   for (int a = 0; a < 3; ++a)
-    L[a] = mt_cell_index((mt_at(p, a) - geom[G_LO + a]) * geom[G_INV + a], 0, (1 << mt_log_dim(levels, H, a)) - 1);
+    L[a] = mt_cell_index((mt_at(p, a) - geom->lo[a]) * geom->invLeaf[a], 0, (1 << mt_log_dim(levels, H, a)) - 1);
   uint visits = 0;
   *r = mt_locate(MT_TREE_ARGS, L, 0, H + 1, &visits);
   return true;
@@ -150,7 +146,7 @@ inline uint mt_trace(MT_TREE_PARAMS, __global const uint* prims, __global const 
   if (d.x == 0 && d.y == 0 && d.z == 0) return MT_NULL;
   double t0 = tmin, t1 = tmax;
   for (int a = 0; a < 3; ++a) { /* rayBox */
-    const double da = mt_at(d, a), oa = mt_at(o, a), lo = geom[G_LO + a], hi = geom[G_HI + a];
+    const double da = mt_at(d, a), oa = mt_at(o, a), lo = geom->lo[a], hi = geom->hi[a];
     if (da == 0.0) {
       if (oa < lo || oa > hi) return MT_NULL;
       continue;
@@ -162,19 +158,19 @@ inline uint mt_trace(MT_TREE_PARAMS, __global const uint* prims, __global const 
     t1 = mt_min(t1, tf);
     if (t0 > t1) return MT_NULL;
   }
-  const mt_v3 ol = mt_v(o.x - geom[G_LO], o.y - geom[G_LO + 1], o.z - geom[G_LO + 2]);
+  const mt_v3 ol = mt_v(o.x - geom->lo[0], o.y - geom->lo[1], o.z - geom->lo[2]);
   int dimH[3];
   for (int a = 0; a < 3; ++a) dimH[a] = 1 << mt_log_dim(levels, H, a);
   int L[3];
   for (int a = 0; a < 3; ++a) {
     const double p = mt_at(ol, a) + mt_at(d, a) * t0;
-    L[a] = mt_cell_index(p * geom[G_INV + a], 0, dimH[a] - 1);
+    L[a] = mt_cell_index(p * geom->invLeaf[a], 0, dimH[a] - 1);
   }
   mt_node n = mt_locate(MT_TREE_ARGS, L, 0, H + 1, visits);
   double tEnter = t0;
   const int maxSteps = 3 * (dimH[0] + dimH[1] + dimH[2]) + 8;
   for (int step = 0; step < maxSteps; ++step) {
-    __global const double* cs = geom + G_CELL + 3 * n.level;
+    __global const double* cs = geom->cellSize[n.level];
     double tExit = t1;
     int exitAxis = -1;
     for (int a = 0; a < 3; ++a) {
@@ -220,7 +216,7 @@ inline uint mt_trace(MT_TREE_PARAMS, __global const uint* prims, __global const 
       if (a == exitAxis) continue;
       const int s = mt_log_dim(levels, H, a) - mt_log_dim(levels, n.level, a);
       const int lo = n.c[a] << s, hi = ((n.c[a] + 1) << s) - 1;
-      L[a] = mt_cell_index((mt_at(ol, a) + mt_at(d, a) * tExit) * geom[G_INV + a], lo, hi);
+      L[a] = mt_cell_index((mt_at(ol, a) + mt_at(d, a) * tExit) * geom->invLeaf[a], lo, hi);
     }
     n = mt_neighbour(MT_TREE_ARGS, &n, exitAxis, dir, L, visits);
     if (n.level < 0) break;

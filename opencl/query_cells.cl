@@ -75,11 +75,11 @@ __kernel void mt_locate_cells(MT_TREE_PARAMS, __global const uint* prims, __glob
   const uint st = mt_storage_index(&ld, ptrs + ld.ptrOffset, leaf.c[0], leaf.c[1], leaf.c[2]);
   const MtLeafRange range = leaves[ld.dataOffset + st];
   /* The point in the leaf's quantized frame: MatrixTree::nodeBox, then the locator's clamp. */
-  __global const double* cs = geom + G_CELL + 3 * H;
+  __global const double* cs = geom->cellSize[H];
   double qx[3];
   for (int a = 0; a < 3; ++a) {
-    const double lo = geom[G_LO + a] + leaf.c[a] * cs[a];
-    const double hi = geom[G_LO + a] + (leaf.c[a] + 1) * cs[a];
+    const double lo = geom->lo[a] + leaf.c[a] * cs[a];
+    const double hi = geom->lo[a] + (leaf.c[a] + 1) * cs[a];
     qx[a] = mt_min(255.0, mt_max(0.0, (mt_at(p, a) - lo) * (255.0 / (hi - lo))));
   }
   for (uint k = range.begin; k < range.end; ++k) {

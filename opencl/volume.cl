@@ -1,6 +1,6 @@
 /* Volume ray marching through the block-sparse volume (engine/include/mtree/volume/volume.h): one
- * work-item per ray, the same arithmetic in the same order as renderVolume() in
- * engine/src/volume/volume.cpp (ray set-up and positions in double, interpolation and compositing in
+ * work-item per ray, the same arithmetic in the same order as renderVolume() (engine/src/volume/
+ * render.cpp and march.h: ray set-up and positions in double, interpolation and compositing in
  * float, or in double for doublePrecision), so that the device image matches the CPU's:
  *   - trilinear interpolation of the 8 cell corners read through the pointer matrix and the
  *     DIM^3 blocks (a cell with an absent corner block is invisible: no sample);
@@ -17,12 +17,8 @@
  * correctly rounded: shaded images agree with the CPU's to ~1e-6, unshaded ones bit for bit on
  * PoCL (no contraction into fma: common.clh switches FP_CONTRACT off).
  *
- * Integer parameters ip[]: 0-2 grid points per axis, 3-5 log2 block edge per axis, 6-7 pointer
- * matrix dims x/y, 8 block volume, 9 level count, 10 last table entry, 11 skip, 12 shade,
- * 13 parallel projection, then per level l: 14+4l.. = dims x/y/z and offset into occ[].
- * Double parameters dp[]: 0-2 eye, 3-5 forward, 6-8 right, 9-11 up, 12 tan(angle/2), 13 aspect,
- * 14 parallel scale, 15-17 origin, 18-20 spacing, 21 dt, 22 threshold, 23 ambient, 24 diffuse,
- * 25 specular, 26 specular power, 27 table lo (as float), 28 table scale (as float). */
+ * Every kernel's parameters are one MtVolumeParams (engine/include/mtree/core/layout.h), filled by
+ * VolumeRenderer::render (engine/src/device/opencl_volume.cpp). */
 
 #define VR_LOG2DIM 3
 #define VR_DIM 8
@@ -57,10 +53,10 @@ inline double vr_exit_t(const double o[3], const double d[3], const double lo[3]
 }
 
 /* The 8 corners of cell (i, j, k), x fastest; 0 when a corner's block is absent. */
-inline int vr_corners(__global const uint* ptr, __global const float* data, __global const int* ip, int i, int j,
-                      int k, float c[8]) {
-  const int lb0 = ip[3], lb1 = ip[4], lb2 = ip[5], pd0 = ip[6], pd1 = ip[7];
-  const uint bv = (uint)ip[8];
+inline int vr_corners(__global const uint* ptr, __global const float* data, __global const MtVolumeParams* P, int i,
+                      int j, int k, float c[8]) {
+  const int lb0 = P->logBlock[0], lb1 = P->logBlock[1], lb2 = P->logBlock[2], pd0 = P->ptrDims[0], pd1 = P->ptrDims[1];
+  const uint bv = P->blockVolume;
   const int m0 = (1 << lb0) - 1, m1 = (1 << lb1) - 1, m2 = (1 << lb2) - 1;
   const int bx0 = i >> lb0, by0 = j >> lb1, bz0 = k >> lb2;
   const int bx1 = (i + 1) >> lb0, by1 = (j + 1) >> lb1, bz1 = (k + 1) >> lb2;
@@ -87,28 +83,28 @@ inline int vr_corners(__global const uint* ptr, __global const float* data, __gl
 }
 
 /* Level-L node (i, j, k) of the empty-space hierarchy holds a visible cell. */
-inline int vr_visible(__global const uchar* occ, __global const int* ip, int L, int i, int j, int k) {
-  __global const int* g = ip + 14 + 4 * L;
-  return occ[(size_t)g[3] + ((size_t)k * g[1] + j) * g[0] + i] != 0;
+inline int vr_visible(__global const uchar* occ, __global const MtVolumeParams* P, int L, int i, int j, int k) {
+  __global const MtVolumeLevel* g = P->level + L;
+  return occ[(size_t)g->occOffset + ((size_t)k * g->dims[1] + j) * g->dims[0] + i] != 0;
 }
 
 /* The index-space ray of pixel (x, y) of a w x h image and its [t0, t1] inside the grid;
  * 0 when it misses the grid. d_world: the world direction (the headlight). */
-inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x, int y, int w, int h, double o_i[3],
-                        double d_i[3], double d_world[3], double* t0o, double* t1o) {
+inline int vr_setup_ray(__global const MtVolumeParams* P, int x, int y, int w, int h, double o_i[3], double d_i[3],
+                        double d_world[3], double* t0o, double* t1o) {
   const double nx = 2.0 * (x + 0.5) / w - 1.0, ny = 2.0 * (y + 0.5) / h - 1.0;
   double o[3], d[3];
-  if (ip[13]) {
-    const double sx = nx * dp[14] * dp[13], sy = ny * dp[14];
+  if (P->parallel) {
+    const double sx = nx * P->parallelScale * P->aspect, sy = ny * P->parallelScale;
     for (int a = 0; a < 3; ++a) {
-      o[a] = dp[a] + dp[6 + a] * sx + dp[9 + a] * sy;
-      d[a] = dp[3 + a];
+      o[a] = P->eye[a] + P->right[a] * sx + P->up[a] * sy;
+      d[a] = P->forward[a];
     }
   } else {
-    const double sx = nx * dp[12] * dp[13], sy = ny * dp[12];
+    const double sx = nx * P->tanHalfAngle * P->aspect, sy = ny * P->tanHalfAngle;
     for (int a = 0; a < 3; ++a) {
-      o[a] = dp[a];
-      d[a] = dp[3 + a] + dp[6 + a] * sx + dp[9 + a] * sy;
+      o[a] = P->eye[a];
+      d[a] = P->forward[a] + P->right[a] * sx + P->up[a] * sy;
     }
     const double nn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     if (nn > 0) {
@@ -120,9 +116,9 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
   int miss = 0;
   for (int a = 0; a < 3; ++a) {
     d_world[a] = d[a];
-    const double hiIdx = (double)(ip[a] - 1);
-    o_i[a] = (o[a] - dp[15 + a]) / dp[18 + a];
-    d_i[a] = d[a] / dp[18 + a];
+    const double hiIdx = (double)(P->dims[a] - 1);
+    o_i[a] = (o[a] - P->origin[a]) / P->spacing[a];
+    d_i[a] = d[a] / P->spacing[a];
     if (d_i[a] == 0) {
       if (o_i[a] < 0 || o_i[a] > hiIdx) miss = 1;
       continue;
@@ -142,37 +138,85 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
 }
 
 /* The marchers' shared start: the work-item's pixel and ray (a missed ray writes zeros and returns),
- * the volume and table parameters (ip/dp: see VolumeRenderer::render). */
+ * the volume and table parameters, the last sample kEnd, the counters. */
 #define VR_RAY_PROLOGUE                                                                                            \
     const int gid = (int)get_global_id(0);                                                                         \
     if (gid >= w * h) return;                                                                                      \
     const int x = gid % w, y = gid / w;                                                                            \
     double o[3], d[3], vd[3], t0, t1;                                                                              \
     __global float* res = out + 4 * (size_t)gid;                                                                   \
-    if (!vr_setup_ray(ip, dp, x, y, w, h, o, d, vd, &t0, &t1)) {                                                   \
-      res[0] = res[1] = res[2] = res[3] = 0.f;                                                                     \
-      counts[2 * (size_t)gid] = 0;                                                                                 \
-      counts[2 * (size_t)gid + 1] = 0;                                                                             \
+    if (!vr_setup_ray(P, x, y, w, h, o, d, vd, &t0, &t1)) {                                                        \
+      VR_RAY_RESULT(0.f, 0.f, 0.f, 0.f, 0, 0);                                                                     \
       return;                                                                                                      \
     }                                                                                                              \
-    const int n[3] = {ip[0], ip[1], ip[2]};                                                                        \
-    const int levels = ip[9], last = ip[10], skip = ip[11], shade = ip[12];                                        \
-    const double dt = dp[21];                                                                                      \
-    const float flo = (float)dp[27], fscale = (float)dp[28];
+    const int n[3] = {P->dims[0], P->dims[1], P->dims[2]};                                                         \
+    const int levels = P->levels, last = P->lastEntry, skip = P->skip, shade = P->shade;                           \
+    const double dt = P->dt;                                                                                       \
+    const float flo = P->tableLo, fscale = P->tableScale;                                                          \
+    const double kxe = floor((t1 - t0) / dt);                                                                      \
+    const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
+    uint samples = 0, skips = 0
+
+/* The ray's result: premultiplied RGBA, then its samples and skipped nodes. */
+#define VR_RAY_RESULT(r, g, b, a, nSamples, nSkips)                                                                \
+  do {                                                                                                             \
+    res[0] = (float)(r);                                                                                           \
+    res[1] = (float)(g);                                                                                           \
+    res[2] = (float)(b);                                                                                           \
+    res[3] = (float)(a);                                                                                           \
+    counts[2 * (size_t)gid] = (nSamples);                                                                          \
+    counts[2 * (size_t)gid + 1] = (nSkips);                                                                        \
+  } while (0)
+
+/* Front-to-back compositing of a sample (r, g, b, a) into (Cr, Cg, Cb, A) in R, as march()'s Acc;
+ * at the threshold the ray is done: k passes kEnd and the sample loop is left. */
+#define VR_COMPOSITE(R, r, g, b, a)                                                                                 \
+  {                                                                                                                \
+    const R wgt = 1 - A;                                                                                           \
+    Cr += wgt * (r);                                                                                               \
+    Cg += wgt * (g);                                                                                               \
+    Cb += wgt * (b);                                                                                               \
+    A += wgt * (a);                                                                                                \
+    if (A >= thr) {                                                                                                \
+      k = kEnd + 1;                                                                                                \
+      break;                                                                                                       \
+    }                                                                                                              \
+  }
+
+/* The shaded colour of a sample (renderVolume's shadeSample), in R. */
+#define VR_SHADE(R, cc, fx, fy, fz, e, vd, P, r, g, b)                                                              \
+  do {                                                                                                             \
+    const R gx_ = (1 - (fy)) * (1 - (fz)) * ((cc)[1] - (cc)[0]) + (fy) * (1 - (fz)) * ((cc)[3] - (cc)[2]) +         \
+                  (1 - (fy)) * (fz) * ((cc)[5] - (cc)[4]) + (fy) * (fz) * ((cc)[7] - (cc)[6]);                      \
+    const R gy_ = (1 - (fx)) * (1 - (fz)) * ((cc)[2] - (cc)[0]) + (fx) * (1 - (fz)) * ((cc)[3] - (cc)[1]) +         \
+                  (1 - (fx)) * (fz) * ((cc)[6] - (cc)[4]) + (fx) * (fz) * ((cc)[7] - (cc)[5]);                      \
+    const R gz_ = (1 - (fx)) * (1 - (fy)) * ((cc)[4] - (cc)[0]) + (fx) * (1 - (fy)) * ((cc)[5] - (cc)[1]) +         \
+                  (1 - (fx)) * (fy) * ((cc)[6] - (cc)[2]) + (fx) * (fy) * ((cc)[7] - (cc)[3]);                      \
+    const R wx_ = gx_ / (R)(P)->spacing[0], wy_ = gy_ / (R)(P)->spacing[1], wz_ = gz_ / (R)(P)->spacing[2];         \
+    const R len_ = sqrt(wx_ * wx_ + wy_ * wy_ + wz_ * wz_);                                                        \
+    r = (e)[0];                                                                                                    \
+    g = (e)[1];                                                                                                    \
+    b = (e)[2];                                                                                                    \
+    if (len_ > 0) {                                                                                                \
+      const R ndl_ = fabs(wx_ * (R)(vd)[0] + wy_ * (R)(vd)[1] + wz_ * (R)(vd)[2]) / len_;                          \
+      const R s_ = (R)(P)->ambient + (R)(P)->diffuse * ndl_;                                                       \
+      const R spec_ = (R)(P)->specular * pow(ndl_, (R)(P)->specularPower) * (R)(e)[3];                             \
+      r = r * s_ + spec_;                                                                                          \
+      g = g * s_ + spec_;                                                                                          \
+      b = b * s_ + spec_;                                                                                          \
+    }                                                                                                              \
+  } while (0)
 
 /* The marcher, once per accumulation type R (float: renderVolume's default; double:
  * doublePrecision). out: premultiplied RGBA per ray; counts: samples and skips per ray. */
 #define VR_DEFINE_MARCH(R, SFX)                                                                                      \
   __kernel void mt_volume_march_##SFX(__global const uint* ptr, __global const float* vdata,                       \
-                                      __global const uchar* occ, __global const int* ip, __global const double* dp, \
+                                      __global const uchar* occ, __global const MtVolumeParams* P,                 \
                                       __global const float* table, __global float* out, __global uint* counts,     \
                                       int w, int h) {                                                              \
     VR_RAY_PROLOGUE;                                                                                               \
-    const double kxe = floor((t1 - t0) / dt);                                                                      \
-    const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
-    uint samples = 0, skips = 0;                                                                                   \
     R A = 0, Cr = 0, Cg = 0, Cb = 0;                                                                               \
-    const R thr = (R)dp[22];                                                                                       \
+    const R thr = (R)P->threshold;                                                                                 \
     long k = 0;                                                                                                    \
     while (k <= kEnd) {                                                                                            \
       long kStop = k;                                                                                              \
@@ -185,7 +229,7 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
         const int bi = ci >> VR_LOG2DIM, bj = cj >> VR_LOG2DIM, bk = ck >> VR_LOG2DIM;                             \
         int empty = -1;                                                                                            \
         for (int L = levels - 1; L >= 0; --L)                                                                      \
-          if (!vr_visible(occ, ip, L, bi >> L, bj >> L, bk >> L)) {                                                \
+          if (!vr_visible(occ, P, L, bi >> L, bj >> L, bk >> L)) {                                                 \
             empty = L;                                                                                             \
             break;                                                                                                 \
           }                                                                                                        \
@@ -210,7 +254,7 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
         const int cj = vr_clamp_cell(o[1] + d[1] * t, n[1], &fyd);                                                 \
         const int ck = vr_clamp_cell(o[2] + d[2] * t, n[2], &fzd);                                                 \
         float cc[8];                                                                                               \
-        if (!vr_corners(ptr, vdata, ip, ci, cj, ck, cc)) continue;                                                 \
+        if (!vr_corners(ptr, vdata, P, ci, cj, ck, cc)) continue;                                                  \
         ++samples;                                                                                                 \
         const R fx = (R)fxd, fy = (R)fyd, fz = (R)fzd;                                                             \
         const R x00 = cc[0] + fx * (cc[1] - cc[0]), x10 = cc[2] + fx * (cc[3] - cc[2]);                            \
@@ -221,41 +265,11 @@ inline int vr_setup_ray(__global const int* ip, __global const double* dp, int x
         const R a = e[3];                                                                                          \
         if (a <= 0) continue;                                                                                      \
         R r = e[0], g = e[1], b = e[2];                                                                            \
-        if (shade) {                                                                                               \
-          const R gx = (1 - fy) * (1 - fz) * (cc[1] - cc[0]) + fy * (1 - fz) * (cc[3] - cc[2]) +                   \
-                       (1 - fy) * fz * (cc[5] - cc[4]) + fy * fz * (cc[7] - cc[6]);                                \
-          const R gy = (1 - fx) * (1 - fz) * (cc[2] - cc[0]) + fx * (1 - fz) * (cc[3] - cc[1]) +                   \
-                       (1 - fx) * fz * (cc[6] - cc[4]) + fx * fz * (cc[7] - cc[5]);                                \
-          const R gz = (1 - fx) * (1 - fy) * (cc[4] - cc[0]) + fx * (1 - fy) * (cc[5] - cc[1]) +                   \
-                       (1 - fx) * fy * (cc[6] - cc[2]) + fx * fy * (cc[7] - cc[3]);                                \
-          const R wx = gx / (R)dp[18], wy = gy / (R)dp[19], wz = gz / (R)dp[20];                                   \
-          const R len = sqrt(wx * wx + wy * wy + wz * wz);                                                         \
-          if (len > 0) {                                                                                           \
-            const R ndl = fabs(wx * (R)vd[0] + wy * (R)vd[1] + wz * (R)vd[2]) / len;                               \
-            const R s = (R)dp[23] + (R)dp[24] * ndl;                                                               \
-            const R spec = (R)dp[25] * pow(ndl, (R)dp[26]) * a;                                                    \
-            r = r * s + spec;                                                                                      \
-            g = g * s + spec;                                                                                      \
-            b = b * s + spec;                                                                                      \
-          }                                                                                                        \
-        }                                                                                                          \
-        const R wgt = 1 - A;                                                                                       \
-        Cr += wgt * r;                                                                                             \
-        Cg += wgt * g;                                                                                             \
-        Cb += wgt * b;                                                                                             \
-        A += wgt * a;                                                                                              \
-        if (A >= thr) {                                                                                            \
-          k = kEnd + 1;                                                                                            \
-          break;                                                                                                   \
-        }                                                                                                          \
+        if (shade) VR_SHADE(R, cc, fx, fy, fz, e, vd, P, r, g, b);                                                 \
+        VR_COMPOSITE(R, r, g, b, a);                                                                               \
       }                                                                                                            \
     }                                                                                                              \
-    res[0] = (float)Cr;                                                                                            \
-    res[1] = (float)Cg;                                                                                            \
-    res[2] = (float)Cb;                                                                                            \
-    res[3] = (float)A;                                                                                             \
-    counts[2 * (size_t)gid] = samples;                                                                             \
-    counts[2 * (size_t)gid + 1] = skips;                                                                           \
+    VR_RAY_RESULT(Cr, Cg, Cb, A, samples, skips);                                                                  \
   }
 
 VR_DEFINE_MARCH(float, f)
@@ -266,14 +280,14 @@ VR_DEFINE_MARCH(double, d)
  * (a 1-voxel apron towards +x/+y/+z, so a cell's 8 corners are in its brick), brick pointers in
  * level-0 order (MT_NULL = absent), one 64-bit visible-cell mask per brick z layer, and an offset
  * added to a stored value (signed input). The two marchers below follow the CPU's two marchers
- * for this storage step for step (engine/src/volume/volume.cpp), so each gives the CPU's image:
+ * for this storage step for step (engine/src/volume/march.h), so each gives the CPU's image:
  *   float accumulation  marchApron(): positions P0 + k S in float, interpolation z, then y, then x,
  *                       the offset added after it, transmittance compositing (C += T e,
  *                       T *= 1 - a), termination at T <= 1 - threshold;
  *   double accumulation march() with the apron fetch: positions in double, brick by brick.
  * Both leave an invisible cell (mask bit clear) unsampled, as the CPU does, so the sample counts
- * agree too. Extra parameters: ip[14], ip[15] = level-0 bricks along x/y (from the level table),
- * dp[29] = the storage offset (a float, held in a double). */
+ * agree too. The level-0 bricks along x and y are the first level's dims; the storage offset is
+ * MtVolumeParams::offset. */
 
 #define VR_SY 9
 #define VR_SZ 81
@@ -332,36 +346,13 @@ VR_DEFINE_APRON_HELPERS(ushort, u16)
 
 /* The coarsest empty ancestor of brick (bi, bj, bk), -1 when the brick is visible (levels are ORs
  * of their children: climb while empty, as the CPU does). */
-inline int vr_empty_level(__global const uchar* occ, __global const int* ip, int levels, int bi, int bj, int bk) {
-  if (vr_visible(occ, ip, 0, bi, bj, bk)) return -1;
+inline int vr_empty_level(__global const uchar* occ, __global const MtVolumeParams* P, int levels, int bi, int bj,
+                          int bk) {
+  if (vr_visible(occ, P, 0, bi, bj, bk)) return -1;
   int e = 0;
-  while (e + 1 < levels && !vr_visible(occ, ip, e + 1, bi >> (e + 1), bj >> (e + 1), bk >> (e + 1))) ++e;
+  while (e + 1 < levels && !vr_visible(occ, P, e + 1, bi >> (e + 1), bj >> (e + 1), bk >> (e + 1))) ++e;
   return e;
 }
-
-/* The shaded colour of a sample (renderVolume's shadeSample), in R. */
-#define VR_SHADE(R, cc, fx, fy, fz, e, vd, dp, r, g, b)                                                             \
-  do {                                                                                                             \
-    const R gx_ = (1 - (fy)) * (1 - (fz)) * ((cc)[1] - (cc)[0]) + (fy) * (1 - (fz)) * ((cc)[3] - (cc)[2]) +         \
-                  (1 - (fy)) * (fz) * ((cc)[5] - (cc)[4]) + (fy) * (fz) * ((cc)[7] - (cc)[6]);                      \
-    const R gy_ = (1 - (fx)) * (1 - (fz)) * ((cc)[2] - (cc)[0]) + (fx) * (1 - (fz)) * ((cc)[3] - (cc)[1]) +         \
-                  (1 - (fx)) * (fz) * ((cc)[6] - (cc)[4]) + (fx) * (fz) * ((cc)[7] - (cc)[5]);                      \
-    const R gz_ = (1 - (fx)) * (1 - (fy)) * ((cc)[4] - (cc)[0]) + (fx) * (1 - (fy)) * ((cc)[5] - (cc)[1]) +         \
-                  (1 - (fx)) * (fy) * ((cc)[6] - (cc)[2]) + (fx) * (fy) * ((cc)[7] - (cc)[3]);                      \
-    const R wx_ = gx_ / (R)(dp)[18], wy_ = gy_ / (R)(dp)[19], wz_ = gz_ / (R)(dp)[20];                             \
-    const R len_ = sqrt(wx_ * wx_ + wy_ * wy_ + wz_ * wz_);                                                        \
-    r = (e)[0];                                                                                                    \
-    g = (e)[1];                                                                                                    \
-    b = (e)[2];                                                                                                    \
-    if (len_ > 0) {                                                                                                \
-      const R ndl_ = fabs(wx_ * (R)(vd)[0] + wy_ * (R)(vd)[1] + wz_ * (R)(vd)[2]) / len_;                          \
-      const R s_ = (R)(dp)[23] + (R)(dp)[24] * ndl_;                                                               \
-      const R spec_ = (R)(dp)[25] * pow(ndl_, (R)(dp)[26]) * (R)(e)[3];                                            \
-      r = r * s_ + spec_;                                                                                          \
-      g = g * s_ + spec_;                                                                                          \
-      b = b * s_ + spec_;                                                                                          \
-    }                                                                                                              \
-  } while (0)
 
 /* Table entry of value v: TransferTable::index as the CPU's apron marcher computes it (truncation,
  * then clamped into [0, last]). */
@@ -369,24 +360,30 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
   return min(max(vr_trunc_f((v - flo) * fscale + 0.5f), 0), last);
 }
 
+/* The apron marchers' start, after VR_RAY_PROLOGUE: the level-0 bricks along x and y, the brick
+ * layout (VR_PAIRED) and the storage offset. */
+#define VR_APRON_PROLOGUE(T)                                                                                        \
+    const int nb0 = P->level[0].dims[0], nb1 = P->level[0].dims[1];                                                \
+    const int paired = VR_PAIRED(T, n, nb0, nb1);                                                                  \
+    const float offset = P->offset
+
+/* An apron marcher's signature: the bricks of voxel type T, their cell masks, the brick table it
+ * walks by (LEVELS: the empty cubes `dist` or the occupancy levels `occ`), the parameters, the
+ * transfer table and the outputs. */
+#define VR_APRON_KERNEL(T, NAME, LEVELS)                                                                            \
+  __kernel void NAME(__global const uint* bptr, __global const T* bricks, __global const ulong* masks,             \
+                     __global const uchar* LEVELS, __global const MtVolumeParams* P, __global const float* table,  \
+                     __global float* out, __global uint* counts, int w, int h)
+
 /* The float marcher (marchApron): one work-item per ray. */
 #define VR_DEFINE_APRON_MARCH_F(T, SFX)                                                                             \
-  __kernel void mt_volume_apron_##SFX##_f(__global const uint* bptr, __global const T* bricks,                     \
-                                          __global const ulong* masks, __global const uchar* dist,                 \
-                                          __global const int* ip, __global const double* dp,                       \
-                                          __global const float* table, __global float* out, __global uint* counts, \
-                                          int w, int h) {                                                          \
+  VR_APRON_KERNEL(T, mt_volume_apron_##SFX##_f, dist) {                                                            \
     VR_RAY_PROLOGUE;                                                                                               \
-    const int nb0 = ip[14], nb1 = ip[15];                                                                          \
-    const int paired = VR_PAIRED(T, n, nb0, nb1);                                                                  \
-    const float offset = (float)dp[29];                                                                            \
-    const float Tmin = 1.f - (float)dp[22];                                                                        \
-    const double kxe = floor((t1 - t0) / dt);                                                                      \
-    const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
+    VR_APRON_PROLOGUE(T);                                                                                          \
+    const float Tmin = 1.f - (float)P->threshold;                                                                  \
     const float P0[3] = {(float)(o[0] + d[0] * t0), (float)(o[1] + d[1] * t0), (float)(o[2] + d[2] * t0)};         \
     const float S[3] = {(float)(d[0] * dt), (float)(d[1] * dt), (float)(d[2] * dt)};                               \
     const int octant = (S[0] < 0.f ? 1 : 0) | (S[1] < 0.f ? 2 : 0) | (S[2] < 0.f ? 4 : 0);                         \
-    uint samples = 0, skips = 0;                                                                                   \
     float Cr = 0.f, Cg = 0.f, Cb = 0.f, Ca = 0.f, Tr = 1.f;                                                        \
     long k = 0;                                                                                                    \
     while (k <= kEnd) {                                                                                            \
@@ -468,7 +465,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
         const float a = e[3];                                                                                      \
         if (shade) {                                                                                               \
           if (!(a > 0.f)) continue;                                                                                \
-          VR_SHADE(float, cc, fx, fy, fz, e, vd, dp, r, g, b);                                                     \
+          VR_SHADE(float, cc, fx, fy, fz, e, vd, P, r, g, b);                                                      \
         }                                                                                                          \
         Cr = Cr + Tr * r;                                                                                          \
         Cg = Cg + Tr * g;                                                                                          \
@@ -499,7 +496,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
           float r = e[0], g = e[1], b = e[2];                                                                      \
           const float a = e[3];                                                                                    \
           if (!shade || a > 0.f) {                                                                                 \
-            if (shade) VR_SHADE(float, cc, fx, fy, fz, e, vd, dp, r, g, b);                                        \
+            if (shade) VR_SHADE(float, cc, fx, fy, fz, e, vd, P, r, g, b);                                         \
             Cr = Cr + Tr * r;                                                                                      \
             Cg = Cg + Tr * g;                                                                                      \
             Cb = Cb + Tr * b;                                                                                      \
@@ -511,29 +508,15 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
         ++k;                                                                                                       \
       }                                                                                                            \
     }                                                                                                              \
-    res[0] = Cr;                                                                                                   \
-    res[1] = Cg;                                                                                                   \
-    res[2] = Cb;                                                                                                   \
-    res[3] = Ca;                                                                                                   \
-    counts[2 * (size_t)gid] = samples;                                                                             \
-    counts[2 * (size_t)gid + 1] = skips;                                                                           \
+    VR_RAY_RESULT(Cr, Cg, Cb, Ca, samples, skips);                                                                 \
   }
 
 /* The double marcher (march() with the apron fetch): positions in double, brick by brick. */
 #define VR_DEFINE_APRON_MARCH_D(T, SFX)                                                                             \
-  __kernel void mt_volume_apron_##SFX##_d(__global const uint* bptr, __global const T* bricks,                     \
-                                          __global const ulong* masks, __global const uchar* occ,                  \
-                                          __global const int* ip, __global const double* dp,                       \
-                                          __global const float* table, __global float* out, __global uint* counts, \
-                                          int w, int h) {                                                          \
+  VR_APRON_KERNEL(T, mt_volume_apron_##SFX##_d, occ) {                                                             \
     VR_RAY_PROLOGUE;                                                                                               \
-    const int nb0 = ip[14], nb1 = ip[15];                                                                          \
-    const int paired = VR_PAIRED(T, n, nb0, nb1);                                                                  \
-    const float offset = (float)dp[29];                                                                            \
-    const double thr = (double)(float)dp[22];                                                                      \
-    const double kxe = floor((t1 - t0) / dt);                                                                      \
-    const long kEnd = kxe > 4e15 ? (long)4e15 : (long)kxe;                                                         \
-    uint samples = 0, skips = 0;                                                                                   \
+    VR_APRON_PROLOGUE(T);                                                                                          \
+    const double thr = (double)(float)P->threshold;                                                                \
     double A = 0, Cr = 0, Cg = 0, Cb = 0;                                                                          \
     long k = 0;                                                                                                    \
     while (k <= kEnd) {                                                                                            \
@@ -542,7 +525,7 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
       const int bi = vr_clamp_cell(o[0] + d[0] * t, n[0], &f) >> VR_LOG2DIM;                                       \
       const int bj = vr_clamp_cell(o[1] + d[1] * t, n[1], &f) >> VR_LOG2DIM;                                       \
       const int bk = vr_clamp_cell(o[2] + d[2] * t, n[2], &f) >> VR_LOG2DIM;                                       \
-      const int empty = skip ? vr_empty_level(occ, ip, levels, bi, bj, bk) : -1;                                   \
+      const int empty = skip ? vr_empty_level(occ, P, levels, bi, bj, bk) : -1;                                    \
       const int L = empty < 0 ? 0 : empty;                                                                         \
       const double edge = (double)(VR_DIM << L);                                                                   \
       const double lo[3] = {(double)(bi >> L) * edge, (double)(bj >> L) * edge, (double)(bk >> L) * edge};         \
@@ -600,26 +583,13 @@ inline int vr_apron_index(float v, float flo, float fscale, int last) {
         double r = e[0], g = e[1], b = e[2];                                                                       \
         if (shade) {                                                                                               \
           if (!(e[3] > 0.f)) continue;                                                                             \
-          VR_SHADE(double, cc, fx, fy, fz, e, vd, dp, r, g, b);                                                    \
+          VR_SHADE(double, cc, fx, fy, fz, e, vd, P, r, g, b);                                                     \
         }                                                                                                          \
-        const double wgt = 1 - A;                                                                                  \
-        Cr += wgt * r;                                                                                             \
-        Cg += wgt * g;                                                                                             \
-        Cb += wgt * b;                                                                                             \
-        A += wgt * a;                                                                                              \
-        if (A >= thr) {                                                                                            \
-          k = kEnd + 1;                                                                                            \
-          break;                                                                                                   \
-        }                                                                                                          \
+        VR_COMPOSITE(double, r, g, b, a);                                                                          \
       }                                                                                                            \
       k = max(k, kLast + 1);                                                                                       \
     }                                                                                                              \
-    res[0] = (float)Cr;                                                                                            \
-    res[1] = (float)Cg;                                                                                            \
-    res[2] = (float)Cb;                                                                                            \
-    res[3] = (float)A;                                                                                             \
-    counts[2 * (size_t)gid] = samples;                                                                             \
-    counts[2 * (size_t)gid + 1] = skips;                                                                           \
+    VR_RAY_RESULT(Cr, Cg, Cb, A, samples, skips);                                                                  \
   }
 
 VR_DEFINE_APRON_MARCH_F(uchar, u8)

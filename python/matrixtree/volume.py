@@ -192,8 +192,8 @@ def frame_camera(volume, azimuth: float = 30.0, elevation: float = 20.0, view_an
 def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=None, spacing=None, origin=None,
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
-                  double_precision: bool = False, shade: bool = False, empty_space_skipping: bool = True,
-                  threads: int = 0, backend: str = "cpu", device: str | None = None, return_stats: bool = False):
+                  double_precision: bool = False, shade: bool = False, threads: int = 0, backend: str = "cpu",
+                  device: str | None = None, return_stats: bool = False):
     """Ray cast a scalar volume into an RGBA image on the block-sparse encoding.
 
     Parameters
@@ -221,8 +221,6 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         Interpolate and composite in double (differences ~1e-6 per channel).
     shade : bool, default: False
         Gradient shading with a headlight.
-    empty_space_skipping : bool, default: True
-        Skip invisible matrix-tree nodes. The image is the same either way.
     threads : int, default: 0
         OpenMP threads; 0 uses all.
     backend : {"cpu", "opencl"}, default: "cpu"
@@ -303,7 +301,6 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     caster.SetEarlyTerminationThreshold(float(early_termination))
     caster.SetDoublePrecision(bool(double_precision))
     caster.SetShade(bool(shade))
-    caster.SetEmptySpaceSkipping(bool(empty_space_skipping))
     caster.SetNumberOfThreads(int(threads))
     if backend == "opencl":
         caster.SetBackendToOpenCL()

@@ -21,17 +21,19 @@ TEST(Layout, FieldTypesAre32Bit) {
   EXPECT_EQ(MT_MAX_LEVELS, 64);
 }
 
+/// Uploaded to a device byte for byte: no vtable, no padding games, trivially copyable, aligned
+/// to `align` bytes.
+template <class T>
+void expectPlainOldData(size_t align, const char* name) {
+  EXPECT_TRUE(std::is_standard_layout<T>::value) << name;
+  EXPECT_TRUE(std::is_trivially_copyable<T>::value) << name;
+  EXPECT_EQ(alignof(T), align) << name;
+}
+
 TEST(Layout, StructsArePlainOldData) {
-  // Uploaded to a device byte for byte: no vtable, no padding games, trivially copyable.
-  EXPECT_TRUE(std::is_standard_layout<MtSparseDesc>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtSparseDesc>::value);
-  EXPECT_TRUE(std::is_standard_layout<MtLeafRange>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtLeafRange>::value);
-  EXPECT_TRUE(std::is_standard_layout<MtLevelDesc>::value);
-  EXPECT_TRUE(std::is_trivially_copyable<MtLevelDesc>::value);
-  EXPECT_EQ(alignof(MtSparseDesc), 4u);
-  EXPECT_EQ(alignof(MtLeafRange), 4u);
-  EXPECT_EQ(alignof(MtLevelDesc), 4u);
+  expectPlainOldData<MtSparseDesc>(4, "MtSparseDesc");
+  expectPlainOldData<MtLeafRange>(4, "MtLeafRange");
+  expectPlainOldData<MtLevelDesc>(4, "MtLevelDesc");
 }
 
 TEST(Layout, LeafRangeIs8Bytes) {
@@ -75,6 +77,72 @@ TEST(Layout, ArraysOfDescriptorsHaveNoGaps) {
             static_cast<std::ptrdiff_t>(2 * sizeof(MtLevelDesc)));
   MtLeafRange ranges[4];
   EXPECT_EQ(reinterpret_cast<const char*>(&ranges[3]) - reinterpret_cast<const char*>(&ranges[0]), 24);
+}
+
+// The kernels' parameter structs: doubles first, then 4-byte fields, each a multiple of 8 bytes,
+// so the device's OpenCL C layout (natural alignment) is the host's.
+TEST(Layout, ParameterStructsArePlainOldData) {
+  expectPlainOldData<MtBuildParams>(8, "MtBuildParams");
+  expectPlainOldData<MtTreeGeom>(8, "MtTreeGeom");
+  expectPlainOldData<MtVolumeLevel>(4, "MtVolumeLevel");
+  expectPlainOldData<MtVolumeParams>(8, "MtVolumeParams");
+}
+
+TEST(Layout, BuildParamsAre96Bytes) {
+  EXPECT_EQ(sizeof(MtBuildParams), 96u);
+  EXPECT_EQ(offsetof(MtBuildParams, origin), 0u);
+  EXPECT_EQ(offsetof(MtBuildParams, invLeaf), 24u);
+  EXPECT_EQ(offsetof(MtBuildParams, leafSize), 48u);
+  EXPECT_EQ(offsetof(MtBuildParams, halfSize), 72u);
+}
+
+TEST(Layout, TreeGeomIs1608Bytes) {
+  EXPECT_EQ(sizeof(MtTreeGeom), 1608u);
+  EXPECT_EQ(offsetof(MtTreeGeom, lo), 0u);
+  EXPECT_EQ(offsetof(MtTreeGeom, hi), 24u);
+  EXPECT_EQ(offsetof(MtTreeGeom, invLeaf), 48u);
+  EXPECT_EQ(offsetof(MtTreeGeom, cellSize), 72u);
+  EXPECT_EQ(sizeof(MtTreeGeom::cellSize), size_t(MT_MAX_LEVELS) * 24u) << "a node size for every level";
+}
+
+TEST(Layout, VolumeLevelIs16Bytes) {
+  EXPECT_EQ(sizeof(MtVolumeLevel), 16u);
+  EXPECT_EQ(offsetof(MtVolumeLevel, dims), 0u);
+  EXPECT_EQ(offsetof(MtVolumeLevel, occOffset), 12u);
+}
+
+TEST(Layout, VolumeParamsAre800Bytes) {
+  EXPECT_EQ(MT_VOLUME_MAX_LEVELS, 32);
+  EXPECT_EQ(sizeof(MtVolumeParams), 800u);
+  EXPECT_EQ(offsetof(MtVolumeParams, eye), 0u);
+  EXPECT_EQ(offsetof(MtVolumeParams, forward), 24u);
+  EXPECT_EQ(offsetof(MtVolumeParams, right), 48u);
+  EXPECT_EQ(offsetof(MtVolumeParams, up), 72u);
+  EXPECT_EQ(offsetof(MtVolumeParams, tanHalfAngle), 96u);
+  EXPECT_EQ(offsetof(MtVolumeParams, aspect), 104u);
+  EXPECT_EQ(offsetof(MtVolumeParams, parallelScale), 112u);
+  EXPECT_EQ(offsetof(MtVolumeParams, origin), 120u);
+  EXPECT_EQ(offsetof(MtVolumeParams, spacing), 144u);
+  EXPECT_EQ(offsetof(MtVolumeParams, dt), 168u);
+  EXPECT_EQ(offsetof(MtVolumeParams, threshold), 176u);
+  EXPECT_EQ(offsetof(MtVolumeParams, ambient), 184u);
+  EXPECT_EQ(offsetof(MtVolumeParams, diffuse), 192u);
+  EXPECT_EQ(offsetof(MtVolumeParams, specular), 200u);
+  EXPECT_EQ(offsetof(MtVolumeParams, specularPower), 208u);
+  EXPECT_EQ(offsetof(MtVolumeParams, tableLo), 216u);
+  EXPECT_EQ(offsetof(MtVolumeParams, tableScale), 220u);
+  EXPECT_EQ(offsetof(MtVolumeParams, offset), 224u);
+  EXPECT_EQ(offsetof(MtVolumeParams, dims), 228u);
+  EXPECT_EQ(offsetof(MtVolumeParams, logBlock), 240u);
+  EXPECT_EQ(offsetof(MtVolumeParams, ptrDims), 252u);
+  EXPECT_EQ(offsetof(MtVolumeParams, blockVolume), 260u);
+  EXPECT_EQ(offsetof(MtVolumeParams, levels), 264u);
+  EXPECT_EQ(offsetof(MtVolumeParams, lastEntry), 268u);
+  EXPECT_EQ(offsetof(MtVolumeParams, skip), 272u);
+  EXPECT_EQ(offsetof(MtVolumeParams, shade), 276u);
+  EXPECT_EQ(offsetof(MtVolumeParams, parallel), 280u);
+  EXPECT_EQ(offsetof(MtVolumeParams, pad), 284u);
+  EXPECT_EQ(offsetof(MtVolumeParams, level), 288u);
 }
 
 TEST(Layout, BlockSparseDescriptorFillsTheSharedStruct) {

@@ -162,7 +162,7 @@ TEST(opencl_volume, IronProteinMatchesCpu) {
   ASSERT_TRUE(mtest::readFloatVolume("volumes/ironProt.vtk", fv)) << "cannot read ironProt.vtk";
   const TransferTable tf = rampTable(fv.range[0], fv.range[1], 0.4, 0.3);
   BlockSparseVolume vol;
-  vol.build(fv.v.data(), fv.dims, tf);
+  vol.build(fv.v.data(), fv.dims, tf, mtest::floatBlocks());
   const VolumeGeometry& g = fv.geo;
   ocl::VolumeRenderer dev(ctx);
   dev.upload(vol);

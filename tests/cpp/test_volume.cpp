@@ -94,7 +94,7 @@ class ConstantBox : public ::testing::Test {
     const int dims[3] = {11, 7, 5};  // box [0,10] x [0,6] x [0,4] at unit spacing (x 0.5 below)
     std::vector<float> v(size_t(dims[0]) * dims[1] * dims[2], 1.f);
     tf = constantTable(0.0, 2.0, float(1 - std::exp(-sigma)));
-    vol.build(v.data(), dims, tf);
+    vol.build(v.data(), dims, tf, mtest::floatBlocks());
     geo.spacing[0] = 1.0;
     geo.spacing[1] = 0.5;  // world box [0,10] x [0,3] x [0,4]
     geo.spacing[2] = 1.0;
@@ -435,8 +435,8 @@ TEST(VolumeRender, SkippingEqualsNoSkippingOnIronProtein) {
   ASSERT_TRUE(mtest::readFloatVolume("volumes/ironProt.vtk", fv));
   const TransferTable tf = rampTable(fv.range[0], fv.range[1], 0.4, 0.3);
   BlockSparseVolume sparse, full;
-  sparse.build(fv.v.data(), fv.dims, tf);
-  VolumeBuildOptions o;
+  sparse.build(fv.v.data(), fv.dims, tf, mtest::floatBlocks());
+  VolumeBuildOptions o = mtest::floatBlocks();
   o.sparse = false;
   full.build(fv.v.data(), fv.dims, tf, o);
   const VolumeGeometry& g = fv.geo;
@@ -518,7 +518,7 @@ TEST(VolumeEdgeCases, BadInputIsRejectedClearly) {
   EXPECT_THROW(renderVolume(vol, VolumeGeometry(), tf, VolumeCamera(), VolumeRenderOptions()), std::invalid_argument)
       << "rendering an unbuilt volume";
 
-  vol.build(v.data(), ok, tf);
+  vol.build(v.data(), ok, tf, mtest::floatBlocks());
   VolumeGeometry g;
   g.spacing[1] = 0;
   EXPECT_THROW(renderVolume(vol, g, tf, VolumeCamera(), VolumeRenderOptions()), std::invalid_argument);
@@ -588,7 +588,7 @@ void expectCompactMatchesFloat(VoxelStorage expected, double lo, double scale, b
   const TransferTable tf = rampTable(lo, hi, 0.3, 0.5);
   BlockSparseVolume compact, flt;
   compact.build(vi.data(), d.n, tf);
-  VolumeBuildOptions o;
+  VolumeBuildOptions o = mtest::floatBlocks();
   o.compact = false;
   flt.build(vi.data(), d.n, tf, o);
   ASSERT_EQ(compact.storage(), expected);
@@ -668,16 +668,16 @@ TEST(CompactStorage, Int8MatchesFloat) { expectCompactMatchesFloat<int8_t>(Voxel
 TEST(CompactStorage, UInt16MatchesFloat) { expectCompactMatchesFloat<uint16_t>(VoxelStorage::UInt16, 1000, 200); }
 TEST(CompactStorage, Int16MatchesFloat) { expectCompactMatchesFloat<int16_t>(VoxelStorage::UInt16, -20000, 150); }
 
-TEST(CompactStorage, IntegerValuedFloatIsStoredLosslesslyOnRequest) {
+TEST(CompactStorage, IntegerValuedFloatIsStoredLosslessly) {
   const Dense d = blobs(20, 18, 16, 4);
   std::vector<float> v(d.v.size());
   for (size_t i = 0; i < v.size(); ++i) v[i] = std::round(d.v[i] * 3.f);  // 0..300: needs 16 bits
   const TransferTable tf = rampTable(0, 300, 0.2, 0.5);
   BlockSparseVolume a, b;
-  a.build(v.data(), d.n, tf);
-  EXPECT_EQ(a.storage(), VoxelStorage::Float32) << "off by default (the OpenCL back end reads float blocks)";
-  VolumeBuildOptions o;
-  o.compactIntegralFloat = true;
+  a.build(v.data(), d.n, tf, mtest::floatBlocks());
+  EXPECT_EQ(a.storage(), VoxelStorage::Float32) << "compactIntegralFloat off: float blocks";
+  const VolumeBuildOptions o;
+  EXPECT_TRUE(o.compactIntegralFloat) << "on by default, as vtkMatrixTreeVolumeRayCaster builds";
   b.build(v.data(), d.n, tf, o);
   EXPECT_EQ(b.storage(), VoxelStorage::UInt16);
   v[7] += 0.5f;  // one fractional value: stays float

@@ -1,11 +1,12 @@
-// The AVX2 marcher of UInt8/UInt16 apron bricks (engine/src/volume/volume.cpp, marchApronAvx2), and the
-// AVX2 set-up of 4 perspective rays at once (setupRays4), against the SSE2 marcher and the scalar
-// set-up they replace at run time (VolumeRenderOptions::vectorized = false takes both): the same image bit for bit (not merely within a tolerance: both
-// do the same float operations in the same order, none fused, and composite the samples one after
-// the other), the same samples and skipped nodes, on synthetic volumes (partial bricks, rays that
-// start inside, graze faces, miss, cross many bricks per step) and on real ones. Where the CPU has
-// no AVX2 both renders take the SSE2 marcher: the comparison then checks the fallback is chosen
-// and stays consistent, and the test says so.
+// The AVX2 marcher of UInt8/UInt16 apron bricks (engine/src/volume/march_avx2.cpp), and the AVX2
+// set-up of 4 perspective rays at once (setupRays4), against the SSE2 marcher and the scalar
+// set-up they replace at run time (VolumeRenderOptions::vectorized = false takes both): the same
+// image bit for bit (not merely within a tolerance: both do the same float operations in the same
+// order, none fused, and composite the samples one after the other), the same samples and skipped
+// nodes, on synthetic volumes (partial bricks, rays that start inside, graze faces, miss, cross
+// many bricks per step) and on real ones. Where the CPU has no AVX2 both renders take the SSE2
+// marcher: the comparison then checks the fallback is chosen and stays consistent, and the test
+// says so.
 #include <gtest/gtest.h>
 
 #include <vtkDataArray.h>
@@ -16,7 +17,6 @@
 #include <vtkStructuredPointsReader.h>
 
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <random>
 #include <string>
@@ -33,10 +33,9 @@ namespace {
 
 /// Whether renderVolume can pick the AVX2 marcher here (the test's own view of the CPU).
 bool avx2Here() {
-#if defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+#if defined(__GNUC__) && defined(__x86_64__)
   __builtin_cpu_init();
-  const char* env = std::getenv("MATRIXTREE_VOLUME_SIMD");
-  return __builtin_cpu_supports("avx2") && !(env && std::strcmp(env, "sse2") == 0);
+  return __builtin_cpu_supports("avx2");
 #else
   return false;
 #endif
@@ -182,10 +181,8 @@ TEST(VolumeSimd, RealVolumesEqualSse2) {
     ASSERT_TRUE(mtest::readFloatVolume(std::string("volumes/") + files[f], fv)) << files[f];
     const int* dims = fv.dims;
     const TransferTable tf = rampTable(fv.range[0], fv.range[1], 0.25, 0.4, 1 << 16);
-    VolumeBuildOptions o;
-    o.compactIntegralFloat = true;
     BlockSparseVolume vol;
-    vol.build(fv.v.data(), fv.dims, tf, o);
+    vol.build(fv.v.data(), fv.dims, tf);  // integer-valued floats: 8/16-bit bricks (compactIntegralFloat)
     ASSERT_EQ(vol.storage(), storages[f]) << files[f];
     const VolumeGeometry& g = fv.geo;
     const Vec3 lo(g.origin[0], g.origin[1], g.origin[2]);
@@ -245,7 +242,7 @@ TEST(VolumeSimd, OnlyUnshadedFloatRaysOfApronBricksAreVectorized) {
   const TransferTable tf = rampTable(0, 255, 0.3, 0.5);
   BlockSparseVolume compact, flt;
   compact.build(v.data(), n, tf);
-  flt.build(vf.data(), n, tf);
+  flt.build(vf.data(), n, tf, mtest::floatBlocks());
   ASSERT_EQ(flt.storage(), VoxelStorage::Float32);
   const VolumeCamera cam = lookAt({-20, 30, -25}, {10, 9, 8}, 16, 16);
   VolumeRenderOptions opt;
@@ -257,13 +254,5 @@ TEST(VolumeSimd, OnlyUnshadedFloatRaysOfApronBricksAreVectorized) {
   off.vectorized = false;
   EXPECT_EQ(renderVolume(compact, VolumeGeometry(), tf, cam, shaded).lanes, 1) << "shaded: the SSE2 marcher";
   EXPECT_EQ(renderVolume(compact, VolumeGeometry(), tf, cam, dbl).lanes, 1) << "double: march()";
-  EXPECT_EQ(renderVolume(compact, VolumeGeometry(), tf, cam, off).lanes, 1);
-  // The environment variable forces the SSE2 marcher for a whole process.
-  const char* old = std::getenv("MATRIXTREE_VOLUME_SIMD");
-  const std::string saved = old ? old : "";
-  setenv("MATRIXTREE_VOLUME_SIMD", "sse2", 1);
-  const int forced = renderVolume(compact, VolumeGeometry(), tf, cam, opt).lanes;
-  if (old) setenv("MATRIXTREE_VOLUME_SIMD", saved.c_str(), 1);
-  else unsetenv("MATRIXTREE_VOLUME_SIMD");
-  EXPECT_EQ(forced, 1);
+  EXPECT_EQ(renderVolume(compact, VolumeGeometry(), tf, cam, off).lanes, 1) << "vectorized = false: the SSE2 marcher";
 }

@@ -17,6 +17,14 @@
 
 namespace mtest {
 
+/// Build options that keep float input in Float32 blocks even where its values are all
+/// integers (VolumeBuildOptions::compactIntegralFloat off): for tests of the float layout.
+inline mtree::VolumeBuildOptions floatBlocks() {
+  mtree::VolumeBuildOptions o;
+  o.compactIntegralFloat = false;
+  return o;
+}
+
 /// Transparent below `threshold` (fraction of [lo, hi]), a colour and opacity ramp above.
 inline mtree::TransferTable rampTable(double lo, double hi, double threshold, float maxAlpha, int n = 1024) {
   std::vector<float> rgba;

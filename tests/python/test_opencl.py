@@ -198,3 +198,62 @@ def test_cell_locator_opencl_without_any_platform_raises():
         "loc.locate([[0.0, 0.0, 0.0]])",
         "print('cpu:', matrixtree.CellLocator(g).locate([[0.0, 0.0, 0.0]]).shape)")
     assert "cpu: (1,)" in out
+
+
+@needs_device
+def test_a_failed_device_selector_is_forgotten(bunny):
+    """vtkMatrixTree and vtkMatrixTreeVolumeRayCaster on OPENCL: a selector that matches no device
+    fails with an error and leaves no device held (no name); the default selector afterwards
+    builds and renders on the device again, as the CPU does."""
+    from matrixtree_vtk import vtkMatrixTree
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonCore import vtkIntArray
+
+    tree = vtkMatrixTree()
+    tree.SetDataSet(bunny)
+    tree.SetBackendToOpenCL()
+    assert tree.Build()
+    device = tree.GetOpenCLDeviceName()
+    assert device
+    tree.SetOpenCLDevice("no device has this name")
+    tree.GlobalWarningDisplayOff()
+    try:
+        assert not tree.Build()
+    finally:
+        tree.GlobalWarningDisplayOn()
+    assert tree.GetOpenCLDeviceName() == ""
+    tree.SetOpenCLDevice(None)
+    assert tree.Build() and tree.GetOpenCLDeviceName() == device
+    points = numpy_to_vtk(np.array(bunny.GetPoints().GetData())[:500].copy(), deep=True)
+    on_device, on_cpu = vtkIntArray(), vtkIntArray()
+    tree.FindLeaves(points, on_device)
+    tree.SetBackendToCPU()
+    tree.FindLeaves(points, on_cpu)
+    assert np.array_equal(np.array(on_device), np.array(on_cpu))
+
+    from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    image = matrixtree.volume._as_image(np.arange(8 * 9 * 10, dtype=np.uint8).reshape(8, 9, 10), None, None)
+    caster = vtkMatrixTreeVolumeRayCaster()
+    caster.SetInputData(image)
+    caster.SetImageSize(24, 20)
+    caster.SetCamera(matrixtree.frame_camera(image))
+
+    def frame():
+        caster.Update()
+        a = caster.GetOutput().GetPointData().GetArray("RGBAFloat")
+        return None if a is None else vtk_to_numpy(a).copy()
+
+    cpu = frame()
+    caster.SetBackendToOpenCL()
+    assert np.abs(frame() - cpu).max() <= 1e-5 and caster.GetOpenCLDeviceName() == device
+    caster.SetOpenCLDevice("no device has this name")
+    caster.GlobalWarningDisplayOff()
+    try:
+        assert frame() is None
+    finally:
+        caster.GlobalWarningDisplayOn()
+    assert caster.GetOpenCLDeviceName() == ""
+    caster.SetOpenCLDevice(None)
+    assert np.abs(frame() - cpu).max() <= 1e-5 and caster.GetOpenCLDeviceName() == device

@@ -1,5 +1,7 @@
 """vtkMatrixTreeVolumeRayCaster and matrixtree.render_volume: analytic transmittance, storage
-and skipping invariants through the VTK class, VTK's fixed-point ray caster as reference, bad input."""
+invariants through the VTK class, VTK's fixed-point ray caster as reference, bad input. The
+checks against the C++-only developer settings (skipping off, dense storage, the SSE2 marcher)
+are in tests/cpp/test_volume_filter.cpp."""
 
 import os
 
@@ -41,17 +43,6 @@ def test_constant_box_transmittance_through_vtk_class():
                                    camera=_camera((-3, 2, 2), (10, 2, 2)), sample_distance=1e-3,
                                    opacity_unit_distance=1.0, early_termination=1.0)
     assert abs((1 - img[0, 0, 3]) - np.exp(-sigma * 4.0)) < 1e-3
-
-
-def test_skipping_and_dense_storage_do_not_change_the_image():
-    im = matrixtree.read_volume(os.path.join(VOLUMES, "HeadMRVolume.mhd"))
-    common = dict(size=(48, 40), camera=matrixtree.frame_camera(im))
-    a, sa = matrixtree.render_volume(im, return_stats=True, **common)
-    b = matrixtree.render_volume(im, empty_space_skipping=False, **common)
-    assert np.abs(a - b).max() <= 1e-6
-    assert sa["blocks_allocated"] < sa["blocks_dense"]
-    assert sa["bytes"] <= 1.10 * sa["visible_block_bytes"]
-    assert a[..., 3].mean() > 0.05
 
 
 def test_numpy_and_vtk_image_inputs_agree_and_any_scalar_type():
@@ -180,30 +171,6 @@ def _shifted(otf, delta):
         otf.GetNodeValue(i, node)
         out.AddPoint(node[0] + delta, node[1], node[2], node[3])
     return out
-
-
-@pytest.mark.parametrize("name", ["HeadMRVolume.mhd", "avg152T1_RL_nifti.nii.gz", "carotid.vtk", "embryo.slc",
-                                  "headsq.mhd", "ironProt.vtk"])
-def test_vectorized_marcher_equals_sse2_marcher_on_real_volumes(name, monkeypatch):
-    """Where the CPU has AVX2 the unshaded 8/16-bit marcher takes 8 samples at a time; the SSE2
-    marcher (forced with MATRIXTREE_VOLUME_SIMD=sse2) must give the same image bit for bit (same
-    float operations, same order), the same samples and skipped nodes. Framed and from inside."""
-    im = matrixtree.read_volume(os.path.join(VOLUMES, name))
-    b = im.GetBounds()
-    centre = [(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2]
-    inside = _camera(centre, (centre[0] + 1, centre[1] + 0.3, centre[2] + 0.2))
-    inside.SetViewAngle(80)
-    for cam in (matrixtree.frame_camera(im), inside):
-        for skip in (True, False):
-            common = dict(size=(64, 48), camera=cam, empty_space_skipping=skip, return_stats=True)
-            monkeypatch.delenv("MATRIXTREE_VOLUME_SIMD", raising=False)
-            a, sa = matrixtree.render_volume(im, **common)
-            monkeypatch.setenv("MATRIXTREE_VOLUME_SIMD", "sse2")
-            c, sc = matrixtree.render_volume(im, **common)
-            assert sa["storage"] in ("uint8", "uint16")
-            assert np.array_equal(a, c), (name, skip, float(np.abs(a - c).max()))
-            assert (sa["samples"], sa["skips"]) == (sc["samples"], sc["skips"])
-            assert a[..., 3].max() > 0.05
 
 
 def test_filter_output_arrays_are_reused_only_when_nobody_holds_them():

@@ -215,11 +215,15 @@ void Builder::build(const TriangleMesh& mesh, const BuildOptions& opt, MatrixTre
                      std::max({std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
                                std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
   const bool exact = opt.overlap == OverlapMode::Exact;
-  const double params[12] = {root.lo.x,  root.lo.y,  root.lo.z,  invLeaf.x,  invLeaf.y,  invLeaf.z,
-                             leafSize.x, leafSize.y, leafSize.z, 0.5 * leafSize.x + pad, 0.5 * leafSize.y + pad,
-                             0.5 * leafSize.z + pad};
+  MtBuildParams params;
+  for (int a = 0; a < 3; ++a) {
+    params.origin[a] = root.lo[a];
+    params.invLeaf[a] = invLeaf[a];
+    params.leafSize[a] = leafSize[a];
+    params.halfSize[a] = 0.5 * leafSize[a] + pad;
+  }
   S.params.ensure(impl, sizeof params, "build parameters");
-  run.write(S.params, params, sizeof params, "build parameters");
+  run.write(S.params, &params, sizeof params, "build parameters");
   if (stats) stats->height = H;
   clock.lap("setup");
 

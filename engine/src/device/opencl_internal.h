@@ -7,6 +7,7 @@
 #include <map>
 #include <mutex>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -85,8 +86,15 @@ class Launcher {
   void setArg(cl_kernel k, const char* name, cl_uint i, std::nullptr_t) {
     setRaw(k, name, i, sizeof(cl_mem), nullptr);
   }
+  /// A buffer or none (a null buffer argument).
+  void setArg(cl_kernel k, const char* name, cl_uint i, const Buffer* b) {
+    setRaw(k, name, i, sizeof(cl_mem), b ? &b->mem : nullptr);
+  }
   template <class T>
-  void setArg(cl_kernel k, const char* name, cl_uint i, const T& v) { setRaw(k, name, i, sizeof(T), &v); }
+  void setArg(cl_kernel k, const char* name, cl_uint i, const T& v) {
+    static_assert(!std::is_pointer<T>::value, "kernel arguments: values, Buffers, const Buffer* or nullptr");
+    setRaw(k, name, i, sizeof(T), &v);
+  }
   void setRaw(cl_kernel k, const char* name, cl_uint i, size_t size, const void* v);
   void enqueue(cl_kernel k, const char* name, size_t global, size_t local);
   void record(const char* name, cl_event e);
@@ -97,16 +105,24 @@ class Launcher {
 };
 
 /// A matrix tree in the layout query.cl reads: level descriptors, every pointer matrix in one
-/// array, every inner level's bytes in another, and the geometry (root box lo/hi, 1 / leaf size as
-/// the builder computes it, then the node size of each level). Shared by the Tracer and the
-/// CellLocator uploads. `who` names the caller in the error for trees past 32-bit offsets.
+/// array, every inner level's bytes in another, and the geometry (MtTreeGeom). Shared by the
+/// Tracer and the CellLocator uploads. `who` names the caller in the error for trees past 32-bit
+/// offsets.
 struct FlatTree {
   std::vector<MtLevelDesc> levels;
   std::vector<uint32_t> ptrs;
   std::vector<uint8_t> inner;
-  std::vector<double> geom;
+  MtTreeGeom geom;
 };
 FlatTree flattenTree(const MatrixTree& tree, const char* who);
+
+/// The device buffers of a flattened tree and its primitive indices (MT_TREE_PARAMS of query.cl,
+/// then prims), as the Tracer and the CellLocator hold them.
+struct TreeBuffers {
+  Buffer levels, ptrs, inner, leaves, prims, geom;
+};
+/// Uploads `tree` (flattened by flattenTree) into `b` through `run`; returns the bytes written.
+size_t uploadTree(Context::Impl& impl, Launcher& run, const MatrixTree& tree, const char* who, TreeBuffers& b);
 
 }  // namespace ocl
 }  // namespace mtree

@@ -11,7 +11,8 @@ namespace mtree {
 namespace ocl {
 
 struct CellLocator::State {
-  Buffer levels, ptrs, inner, leaves, prims, geom, boxes, pts, offsets, conn, types;
+  TreeBuffers tree;
+  Buffer boxes, pts, offsets, conn, types;
   Buffer query, out;
   int H = 0;
   bool empty = true, uploaded = false;
@@ -40,7 +41,6 @@ void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const Lar
     S.uploaded = true;
     return;
   }
-  const FlatTree flat = flattenTree(tree, "OpenCL CellLocator");
   // The cells as flat arrays (the CellSet keeps them private; rebuilt from its accessors).
   const size_t nc = cells.size();
   std::vector<uint32_t> offsets(nc + 1, 0), conn;
@@ -58,13 +58,7 @@ void CellLocator::upload(const MatrixTree& tree, const CellSet& cells, const Lar
     run.write(b, src, bytes, what);
     S.bytes += bytes;
   };
-  const LargeVector<uint32_t>& prims = tree.primitiveIndices();
-  put(S.levels, flat.levels.data(), flat.levels.size() * sizeof(MtLevelDesc), "level descriptors");
-  put(S.ptrs, flat.ptrs.data(), flat.ptrs.size() * sizeof(uint32_t), "pointer matrices");
-  put(S.inner, flat.inner.data(), flat.inner.size(), "inner levels");
-  put(S.leaves, tree.leafLevel().data().data(), tree.leafLevel().data().size() * sizeof(MtLeafRange), "leaf ranges");
-  put(S.prims, prims.data(), prims.size() * sizeof(uint32_t), "cell indices");
-  put(S.geom, flat.geom.data(), flat.geom.size() * sizeof(double), "tree geometry");
+  S.bytes += uploadTree(impl, run, tree, "OpenCL CellLocator", S.tree);
   put(S.boxes, leafBoxes.data(), leafBoxes.size(), "quantized leaf boxes");
   std::vector<double> pts(3 * cells.numPoints());  // the device reads doubles
   for (size_t i = 0; i < cells.numPoints(); ++i) {
@@ -97,7 +91,8 @@ void CellLocator::locate(const double* pts, size_t n, double tol, uint32_t* out,
   S.out.ensure(impl, 2 * n * sizeof(uint32_t), "location answers");
   run.write(S.query, pts, 3 * n * sizeof(double), "query points");
   const cl_int H = S.H;
-  run.run("mt_locate_cells", n, 0, S.levels, S.ptrs, S.inner, S.leaves, S.geom, H, S.prims, S.boxes, S.pts, S.offsets,
+  const TreeBuffers& T = S.tree;
+  run.run("mt_locate_cells", n, 0, T.levels, T.ptrs, T.inner, T.leaves, T.geom, H, T.prims, S.boxes, S.pts, S.offsets,
           S.conn, S.types, S.query, static_cast<uint32_t>(n), tol, S.out);
   run.read(S.out, out, 2 * n * sizeof(uint32_t), "location answers");
   run.finish();

@@ -1,6 +1,6 @@
 // OpenCL host code, part 4: volume ray casting on the device (opencl/volume.cl) over an uploaded
 // BlockSparseVolume. The parameters are computed here exactly as renderVolume() computes them
-// (engine/src/volume/volume.cpp): camera basis, tan of the half angle, the premultiplied table with the
+// (engine/src/volume/render.cpp): camera basis, tan of the half angle, the premultiplied table with the
 // opacity corrected for the step, the table's float lo/scale; the kernel does the rest per ray.
 #ifdef MATRIXTREE_HAVE_OPENCL
 
@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "mtree/core/parallel.h"
 #include "opencl_internal.h"
@@ -20,13 +21,9 @@ struct VolumeRenderer::State {
   // pointers and 9^3 bricks (8 or 16 bits); masks: the apron layout's visible-cell words; dist:
   // the per-octant empty cubes of the bricks (BlockSparseVolume::brickDistances), which the
   // apron float marcher walks by, as marchApron does (the others walk the occupancy levels).
-  Buffer ptr, data, masks, occ, dist, ip, dp, table, out, counts;
-  std::vector<int32_t> levelInts;  // per level: dims x/y/z, offset into occ
-  int n[3] = {0, 0, 0}, logBlock[3] = {0, 0, 0}, ptrDims[2] = {0, 0};
-  uint32_t blockVolume = 0;
-  int levels = 0;
+  Buffer ptr, data, masks, occ, dist, params, table, out, counts;
+  MtVolumeParams shape{};  // the volume's fields of the kernels' parameters (dims .. level)
   VoxelStorage storage = VoxelStorage::Float32;
-  float offset = 0;
   bool uploaded = false;
 };
 
@@ -45,21 +42,25 @@ void VolumeRenderer::upload(const BlockSparseVolume& vol) {
   const BlockSparseMatrix<float>& m = vol.voxels();
   const MtSparseDesc& d = m.desc();
   S.storage = vol.storage();
-  S.offset = vol.storageOffset();
+  MtVolumeParams& P = S.shape;
+  P = MtVolumeParams{};
+  P.offset = vol.storageOffset();
   for (int a = 0; a < 3; ++a) {
-    S.n[a] = vol.dim(a);
-    S.logBlock[a] = d.logBlock[a];
+    P.dims[a] = vol.dim(a);
+    P.logBlock[a] = d.logBlock[a];
   }
-  S.ptrDims[0] = d.ptrDims[0];
-  S.ptrDims[1] = d.ptrDims[1];
-  S.blockVolume = d.blockVolume;
+  P.ptrDims[0] = d.ptrDims[0];
+  P.ptrDims[1] = d.ptrDims[1];
+  P.blockVolume = d.blockVolume;
   // The matrix-tree occupancy levels, concatenated (one byte per node, as the CPU keeps them).
-  S.levels = vol.levelCount();
-  S.levelInts.clear();
+  P.levels = vol.levelCount();
+  if (P.levels > MT_VOLUME_MAX_LEVELS)
+    throw std::length_error("VolumeRenderer (OpenCL): more than " + std::to_string(MT_VOLUME_MAX_LEVELS) +
+                            " occupancy levels");
   std::vector<uint8_t> occ;
-  for (int L = 0; L < S.levels; ++L) {
+  for (int L = 0; L < P.levels; ++L) {
     const int nx = vol.levelDim(L, 0), ny = vol.levelDim(L, 1), nz = vol.levelDim(L, 2);
-    S.levelInts.insert(S.levelInts.end(), {nx, ny, nz, static_cast<int32_t>(occ.size())});
+    P.level[L] = MtVolumeLevel{{nx, ny, nz}, static_cast<uint32_t>(occ.size())};
     for (int k = 0; k < nz; ++k)
       for (int j = 0; j < ny; ++j)
         for (int i = 0; i < nx; ++i) occ.push_back(vol.nodeVisible(L, i, j, k) ? 1 : 0);
@@ -98,8 +99,6 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
   if (!S.uploaded) throw Error("OpenCL VolumeRenderer: no volume uploaded; call upload(volume) first");
   checkVolumeRenderArguments(geo, tf, cam, opt, "renderVolume (OpenCL)");
   const std::vector<float> table = stepCorrectedTable(tf, opt.sampleDistance);
-  const int last = tf.lastIndex();
-  const float flo = tf.indexLo(), fscale = tf.indexScale();
 
   const int w = std::max(1, static_cast<int>(std::lround(cam.width / opt.imageSampleDistance)));
   const int h = std::max(1, static_cast<int>(std::lround(cam.height / opt.imageSampleDistance)));
@@ -109,18 +108,30 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
   const Vec3 up = cross(right, fwd);
   const double th = std::tan(cam.viewAngle * 0.5 * 3.14159265358979323846 / 180.0);
 
-  std::vector<int32_t> ip = {S.n[0], S.n[1], S.n[2], S.logBlock[0], S.logBlock[1], S.logBlock[2], S.ptrDims[0],
-                             S.ptrDims[1], static_cast<int32_t>(S.blockVolume), S.levels, last,
-                             opt.emptySpaceSkipping ? 1 : 0, opt.shade ? 1 : 0, cam.parallel ? 1 : 0};
-  ip.insert(ip.end(), S.levelInts.begin(), S.levelInts.end());
-  // The CPU compares against the threshold as a float (Frame::threshold): send that value.
-  const double threshold = double(earlyTerminationThreshold(opt));
-  const std::vector<double> dp = {cam.position.x, cam.position.y, cam.position.z, fwd.x, fwd.y, fwd.z,
-                                  right.x, right.y, right.z, up.x, up.y, up.z, th, aspect, cam.parallelScale,
-                                  geo.origin[0], geo.origin[1], geo.origin[2],
-                                  geo.spacing[0], geo.spacing[1], geo.spacing[2], opt.sampleDistance, threshold,
-                                  opt.ambient, opt.diffuse, opt.specular, opt.specularPower, double(flo),
-                                  double(fscale), double(S.offset)};
+  MtVolumeParams P = S.shape;
+  for (int a = 0; a < 3; ++a) {
+    P.eye[a] = cam.position[a];
+    P.forward[a] = fwd[a];
+    P.right[a] = right[a];
+    P.up[a] = up[a];
+    P.origin[a] = geo.origin[a];
+    P.spacing[a] = geo.spacing[a];
+  }
+  P.tanHalfAngle = th;
+  P.aspect = aspect;
+  P.parallelScale = cam.parallelScale;
+  P.dt = opt.sampleDistance;
+  P.threshold = double(earlyTerminationThreshold(opt));  // the float the CPU compares against
+  P.ambient = opt.ambient;
+  P.diffuse = opt.diffuse;
+  P.specular = opt.specular;
+  P.specularPower = opt.specularPower;
+  P.tableLo = tf.indexLo();
+  P.tableScale = tf.indexScale();
+  P.lastEntry = tf.lastIndex();
+  P.skip = opt.emptySpaceSkipping ? 1 : 0;
+  P.shade = opt.shade ? 1 : 0;
+  P.parallel = cam.parallel ? 1 : 0;
 
   Context::Impl& impl = ctx_->impl();
   std::lock_guard<std::recursive_mutex> lock(impl.mutex);
@@ -133,21 +144,20 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
       b.ensure(impl, bytes, what);
       run.write(b, src, bytes, what);
     };
-    put(S.ip, ip.data(), ip.size() * sizeof(int32_t), "volume int parameters");
-    put(S.dp, dp.data(), dp.size() * sizeof(double), "volume parameters");
+    put(S.params, &P, sizeof P, "volume parameters");
     put(S.table, table.data(), table.size() * sizeof(float), "transfer table");
     S.out.ensure(impl, small.size() * sizeof(float), "volume image");
     S.counts.ensure(impl, counts.size() * sizeof(uint32_t), "volume ray counters");
     const cl_int cw = w, ch = h;
     if (S.storage == VoxelStorage::Float32) {
-      run.run(opt.doublePrecision ? "mt_volume_march_d" : "mt_volume_march_f", rays, 0, S.ptr, S.data, S.occ, S.ip,
-              S.dp, S.table, S.out, S.counts, cw, ch);
+      run.run(opt.doublePrecision ? "mt_volume_march_d" : "mt_volume_march_f", rays, 0, S.ptr, S.data, S.occ,
+              S.params, S.table, S.out, S.counts, cw, ch);
     } else {
       // The apron marchers: the CPU's marchApron (float) or march() over apron bricks (double).
       const bool u8 = S.storage == VoxelStorage::UInt8;
       const char* name = opt.doublePrecision ? (u8 ? "mt_volume_apron_u8_d" : "mt_volume_apron_u16_d")
                                              : (u8 ? "mt_volume_apron_u8_f" : "mt_volume_apron_u16_f");
-      run.run(name, rays, 0, S.ptr, S.data, S.masks, opt.doublePrecision ? S.occ : S.dist, S.ip, S.dp, S.table,
+      run.run(name, rays, 0, S.ptr, S.data, S.masks, opt.doublePrecision ? S.occ : S.dist, S.params, S.table,
               S.out, S.counts, cw, ch);
     }
     run.read(S.out, small.data(), small.size() * sizeof(float), "volume image");

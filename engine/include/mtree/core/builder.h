@@ -1,29 +1,36 @@
 // The parallel bottom-up build of Andrysco & Tricoche §5.1 (after Kalojanov & Slusallek 2009),
-// on OpenMP. Steps and the phase names reported in BuildStats:
-//   setup       root box, automatic height, level shapes (the one serial step, paper step 1)
-//   count+mark  per primitive: count overlapped bottom-level nodes, mark their blocks (step 2)
-//   alloc       exclusive scan of the block marks, block pointers set (steps 3-4)
+// on OpenMP. MatrixTreeBuilder::build runs one member of MatrixTreeBuilder::Run per phase, each
+// timed under its name in BuildStats::phasesMs:
+//   setup        step 1, the one serial step: root box, height, level shapes
+//   count+mark   step 2: per primitive, count the overlapped leaves and mark their blocks
+//   alloc        steps 3-4: exclusive scan of the block marks, block pointers set
 // then, with BuildSort::Radix (the paper's; the default):
-//   scan        exclusive scan of the per-primitive counts (step 5)
-//   pairs       write (node, primitive) pairs at the scanned offsets, no atomics (step 6)
-//   sort        stable radix sort of the pairs by node (step 7)
-//   offsets     leaf ranges from neighbouring keys in the sorted array (step 8)
-//   refdata     only with per-reference data: a pass over the leaves, one call per reference
-// or with BuildSort::Counting (the leaf storage is dense after alloc):
-//   leaf counts references per leaf storage entry, counted by count+mark (each thread in its own
-//               first-touch numbering of the blocks) and copied or added to their final places;
-//               with more than two threads on a large leaf level, a pass with atomic increments
-//   leaf scan   exclusive scan over the leaf storage; leaf ranges from it
-//   scatter     each reference's primitive id (and its data) at its leaf's next slot
-//   leaf order  with more than two threads only: each leaf's ids sorted ascending
+//   scan         step 5: exclusive scan of the per-primitive counts
+//   pairs        step 6: (leaf, primitive) pairs written at the scanned offsets, no atomics
+//   sort         step 7: stable radix sort of the pairs by leaf
+//   offsets      step 8: leaf ranges from neighbouring keys in the sorted array
+//   refdata      only with per-reference data: a pass over the leaves, one call per reference
+// or with BuildSort::Counting (the leaf storage is dense after alloc: a leaf's storage index is
+// its counter):
+//   leaf counts  references per leaf, counted by count+mark (each thread in its own first-touch
+//                numbering of the blocks) and copied or added to their final places; with more
+//                than two threads on a large leaf level, a pass with atomic increments
+//   leaf scan    exclusive scan over the leaf storage; leaf ranges from it
+//   scatter      each reference's primitive id (and its data) at its leaf's next slot
+//   leaf order   with more than two threads only: each leaf's ids sorted ascending
 // and in both
-//   propagate   existence up to the root, level by level (step 9)
-// Pairs and scatter repeat no overlap test that count+mark made: its verdicts for
-// a primitive's first 64 candidate leaves are kept as a bit mask.
-// The result depends only on the input, never on the thread count or the sort: every parallel
-// step writes to positions fixed by a scan, the radix sort is stable and the counting sort
-// writes (one or two threads) or restores (more) ascending ids per leaf, so both give the same
-// leaf ranges and primitive order.
+//   propagate    step 9: existence up to the root, level by level
+//   walk caches  MatrixTree::buildWalkCaches
+// pairs and scatter repeat no overlap test that count+mark made: its verdicts for a primitive's
+// first 64 candidate leaves are kept as a bit mask.
+//
+// Determinism: the tree depends only on the primitives and the options, never on the thread
+// count or the sort. Every parallel step writes to positions fixed by a scan, or stores the same
+// byte from every writer; the radix sort is stable; the counting sort writes ascending ids per
+// leaf (one thread, or two filling each leaf from both ends) or restores that order (leaf
+// order); the per-reference data depends on the primitive and the leaf only. So both sorts give
+// the same leaf ranges, primitive order and data (tests/cpp/test_build_sort.cpp holds every sort
+// and thread count to the one-thread radix tree).
 #pragma once
 
 #include <algorithm>
@@ -72,6 +79,10 @@ class MatrixTreeBuilder {
   template <size_t Bytes, class RefFn>
   static void build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats,
                     LargeVector<uint8_t>* refData, RefFn&& fn);
+
+ private:
+  template <size_t Bytes, class RefFn>
+  class Run;
 };
 
 namespace detail {
@@ -232,10 +243,8 @@ inline Box padRootBox(Box root) {
 /// the median primitive extent of a deterministic sample (every (n / 2048)-th primitive: all of
 /// them below 2048, else 2048 to 4095; the median's standard error is ~2% of the spread, far
 /// below the factor 2 between heights), then one level up at a time while the sampled bounding
-/// boxes cover more than opt.maxCandidates leaves on average. The sample was every (n / 8192)-th
-/// until 2026-11-21: the same heights and references on every CFD grid and mesh of the shared
-/// data, for a quarter of the time (brick_hex's setup 0.30 -> 0.05 ms of a 1.9 ms build).
-/// `median` receives the median extent. Shared by the CPU and the OpenCL builders.
+/// boxes cover more than opt.maxCandidates leaves on average. `median` receives the median
+/// extent. Shared by the CPU and the OpenCL builders.
 template <class Prims>
 int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, double& median) {
   const Vec3 ext = root.extent();
@@ -299,427 +308,368 @@ inline void checkBuildOptions(const BuildOptions& opt, size_t numPrimitives) {
 }
 }  // namespace detail
 
+/// One build: what the phases share, and one member per phase of the list at the top of this
+/// file, in the order build() calls them. Each phase ends with its lap of the phase clock.
 template <class Prims>
 template <size_t Bytes, class RefFn>
-void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree,
-                                     BuildStats* stats, LargeVector<uint8_t>* refData, RefFn&& fn) {
-  detail::checkBuildOptions(opt, prims.size());
-  if constexpr (Bytes > 0) {
-    if (!refData) throw std::invalid_argument("MatrixTree: per-reference data needs an output vector");
-    refData->clear();
-  }
+class MatrixTreeBuilder<Prims>::Run {
+ public:
+  Run(const Prims& prims, const BuildOptions& opt, MatrixTree& tree, BuildStats* stats,
+      LargeVector<uint8_t>* refData, RefFn& fn)
+      : prims_(prims),
+        opt_(opt),
+        tree_(tree),
+        stats_(stats),
+        refData_(refData),
+        fn_(fn),
+        scratch_(tree.scratch_),
+        threads_(resolveThreads(opt.threads)),
+        n_(static_cast<int64_t>(prims.size())),
+        exact_(opt.overlap == OverlapMode::Exact),
+        clock_(stats) {}
 
-  const int threads = resolveThreads(opt.threads);
-  // Threads for a light pass over m items (see kSerialBelow).
-  auto lightThreads = [threads](int64_t m) { return m >= kSerialBelow ? threads : 1; };
-  if (stats) *stats = BuildStats{};
-  detail::PhaseClock clock(stats);
-  const int64_t n = static_cast<int64_t>(prims.size());
-
-  // ---- setup: root box, height, level shapes --------------------------------------------------
-  Box root;
-  if constexpr (detail::HasTotalBounds<Prims>::value) {
-    root = prims.totalBounds();
-  } else {
-    std::vector<Box> partial(threads);
+  /// Step 1, the one serial step: the root box (the union of the primitives' bounds, padded by
+  /// padRootBox), the height (BuildOptions::height, or autoHeight) and every level's shape. The
+  /// tree is reset first, keeping its storage and work arrays for their capacity, and stays empty
+  /// until finish(): a build that throws leaves an empty tree. False when there is no primitive
+  /// (the tree is then complete and empty).
+  bool setup() {
+    const int64_t n = n_;
+    Box root;
+    if constexpr (detail::HasTotalBounds<Prims>::value) {
+      root = prims_.totalBounds();
+    } else {
+      std::vector<Box> partial(threads_);
 #pragma omp parallel num_threads(lightThreads(n))
-    {
-      Box b;
+      {
+        Box b;
 #pragma omp for schedule(static)
-      for (int64_t i = 0; i < n; ++i) b.extend(prims.bounds(i));
-      partial[omp_get_thread_num()] = b;
+        for (int64_t i = 0; i < n; ++i) b.extend(prims_.bounds(i));
+        partial[omp_get_thread_num()] = b;
+      }
+      for (const Box& b : partial) root.extend(b);
     }
-    for (const Box& b : partial) root.extend(b);
-  }
-  if (n > 0 && !(isFinite(root.lo) && isFinite(root.hi)))
-    throw std::invalid_argument("MatrixTree: a primitive has non-finite coordinates (NaN or inf)");
+    if (n > 0 && !(isFinite(root.lo) && isFinite(root.hi)))
+      throw std::invalid_argument("MatrixTree: a primitive has non-finite coordinates (NaN or inf)");
 
-  // Reset the tree but keep its storage and work arrays: their capacity is reused.
-  auto& scratch = tree.scratch_;
-  scratch.values.swap(tree.prims_);
-  tree.prims_.clear();
-  tree.root_ = Box{};
-  tree.invLeaf_ = Vec3();
-  tree.empty_ = true;  // until the build completes: a build that throws leaves an empty tree
-  tree.buildWalkCaches(0);  // clears them until the build completes
-  tree.kind_ = opt.kind;
-  tree.blockEdge_ = opt.blockEdge;
-  if (stats) stats->primitives = static_cast<uint64_t>(n);
-  if (n == 0) {
-    tree.empty_ = true;
-    tree.height_ = 0;
-    tree.inner_.clear();
-    tree.logDims_.assign(1, {0, 0, 0});
-    tree.cellSize_.assign(1, Vec3(1, 1, 1));
+    MatrixTree& tree = tree_;
+    scratch_.values.swap(tree.prims_);
+    tree.prims_.clear();
     tree.root_ = Box{};
-    tree.leaves_.reset(1, 1, 1, opt.blockEdge, MtLeafRange{MT_NULL, MT_NULL});
-    clock.lap("setup");
-    clock.finish();
-    return;
-  }
-  root = detail::padRootBox(root);
-  tree.root_ = root;
-  const Vec3 ext = root.extent();
+    tree.invLeaf_ = Vec3();
+    tree.empty_ = true;
+    tree.buildWalkCaches(0);  // cleared until the build completes
+    tree.kind_ = opt_.kind;
+    tree.blockEdge_ = opt_.blockEdge;
+    if (stats_) stats_->primitives = static_cast<uint64_t>(n);
+    if (n == 0) {
+      tree.height_ = 0;
+      tree.inner_.clear();
+      tree.logDims_.assign(1, {0, 0, 0});
+      tree.cellSize_.assign(1, Vec3(1, 1, 1));
+      tree.leaves_.reset(1, 1, 1, opt_.blockEdge, MtLeafRange{MT_NULL, MT_NULL});
+      clock_.lap("setup");
+      clock_.finish();
+      return false;
+    }
+    root = detail::padRootBox(root);
+    tree.root_ = root;
+    const Vec3 ext = root.extent();
 
-  int H = opt.height;
-  if (H == 0) {
-    double med = 0;
-    H = detail::autoHeight(prims, opt, root, med);
-    if (stats) {
-      stats->autoHeight = true;
-      stats->medianPrimitiveExtent = med;
+    int H = opt_.height;
+    if (H == 0) {
+      double med = 0;
+      H = detail::autoHeight(prims_, opt_, root, med);
+      if (stats_) {
+        stats_->autoHeight = true;
+        stats_->medianPrimitiveExtent = med;
+      }
     }
-  }
-  tree.height_ = H;
-  tree.logDims_ = levelShapes(opt.kind, ext, H);
-  {
-    // The bottom level's pointer matrix is dense over the root box: refuse heights whose pointer
-    // matrix alone would pass 1 GiB rather than exhaust memory.
-    const int lb = ceilLog2(static_cast<uint64_t>(opt.blockEdge));
-    int logPtr = 0, logAxis = 0;
-    for (int a = 0; a < 3; ++a) {
-      logPtr += std::max(0, tree.logDims_[H][a] - lb);
-      logAxis = std::max(logAxis, tree.logDims_[H][a]);
+    H_ = H;
+    tree.height_ = H;
+    tree.logDims_ = levelShapes(opt_.kind, ext, H);
+    {
+      // The bottom level's pointer matrix is dense over the root box: refuse heights whose pointer
+      // matrix alone would pass 1 GiB rather than exhaust memory.
+      const int lb = ceilLog2(static_cast<uint64_t>(opt_.blockEdge));
+      int logPtr = 0, logAxis = 0;
+      for (int a = 0; a < 3; ++a) {
+        logPtr += std::max(0, tree.logDims_[H][a] - lb);
+        logAxis = std::max(logAxis, tree.logDims_[H][a]);
+      }
+      if (logPtr + 2 > 30 || logAxis > 30)  // 4-byte pointers: 2^(logPtr+2) bytes
+        throw std::length_error("MatrixTree: height " + std::to_string(H) + " needs a 2^" +
+                                std::to_string(logPtr + 2) +
+                                "-byte pointer matrix at the leaf level (limit 1 GiB, and at most 2^30 nodes per "
+                                "axis); lower the height or raise the block edge");
     }
-    if (logPtr + 2 > 30 || logAxis > 30)  // 4-byte pointers: 2^(logPtr+2) bytes
-      throw std::length_error("MatrixTree: height " + std::to_string(H) + " needs a 2^" + std::to_string(logPtr + 2) +
-                              "-byte pointer matrix at the leaf level (limit 1 GiB, and at most 2^30 nodes per "
-                              "axis); lower the height or raise the block edge");
+    tree.cellSize_.resize(H + 1);
+    for (int l = 0; l <= H; ++l)
+      for (int a = 0; a < 3; ++a) tree.cellSize_[l][a] = std::ldexp(ext[a], -tree.logDims_[l][a]);
+    for (int a = 0; a < 3; ++a) tree.invLeaf_[a] = std::ldexp(1.0, tree.logDims_[H][a]) / ext[a];
+    LeafGrid& g = grid_;
+    for (int a = 0; a < 3; ++a) g.dims[a] = 1 << tree.logDims_[H][a];
+    tree.leaves_.reset(g.dims[0], g.dims[1], g.dims[2], opt_.blockEdge, MtLeafRange{MT_NULL, MT_NULL});
+    tree.inner_.resize(H);
+    g.leafSize = tree.cellSize_[H];
+    // Boxes are padded by round-off of the coordinates so the exact test stays conservative.
+    const double pad = 64 * std::numeric_limits<double>::epsilon() *
+                       std::max({std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
+                                 std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
+    g.half = Vec3(0.5 * g.leafSize.x + pad, 0.5 * g.leafSize.y + pad, 0.5 * g.leafSize.z + pad);
+    g.invLeaf = tree.invLeaf_;
+    g.org = root.lo;
+    if (stats_) stats_->height = H;
+    clock_.lap("setup");
+    return true;
   }
-  tree.cellSize_.resize(H + 1);
-  for (int l = 0; l <= H; ++l)
-    for (int a = 0; a < 3; ++a) tree.cellSize_[l][a] = std::ldexp(ext[a], -tree.logDims_[l][a]);
-  for (int a = 0; a < 3; ++a) tree.invLeaf_[a] = std::ldexp(1.0, tree.logDims_[H][a]) / ext[a];
-  const int nx = 1 << tree.logDims_[H][0], ny = 1 << tree.logDims_[H][1], nz = 1 << tree.logDims_[H][2];
-  tree.leaves_.reset(nx, ny, nz, opt.blockEdge, MtLeafRange{MT_NULL, MT_NULL});
-  tree.inner_.resize(H);
-  const Vec3 leafSize = tree.cellSize_[H];
-  // Boxes are padded by round-off of the coordinates so the exact test stays conservative.
-  const double pad = 64 * std::numeric_limits<double>::epsilon() *
-                     std::max({std::fabs(root.lo.x), std::fabs(root.lo.y), std::fabs(root.lo.z),
-                               std::fabs(root.hi.x), std::fabs(root.hi.y), std::fabs(root.hi.z)});
-  const Vec3 invLeaf = tree.invLeaf_;
-  const Vec3 org = root.lo;
-  const bool exact = opt.overlap == OverlapMode::Exact;
-  if (stats) stats->height = H;
-  clock.lap("setup");
 
-  // Candidate range of bottom-level cells of a primitive (its bounding box, clamped): floor of
-  // the local coordinate by cellIndexNonNegative (negatives and NaN clamp to 0), without a floor
-  // call per coordinate; every pass over the primitives computes it.
-  auto cellRange = [&](const Box& b, int lo[3], int hi[3]) {
-    const int dims[3] = {nx, ny, nz};
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = cellIndexNonNegative((b.lo[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
-      hi[a] = cellIndexNonNegative((b.hi[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
+  /// Step 2: per primitive, the leaves it overlaps among its candidates (the leaves its bounding
+  /// box touches; with OverlapMode::Exact each tested by a separating-axis test) are counted
+  /// (counts) and their blocks marked (marks: a byte store of 1 by every writer). The verdicts of
+  /// the first 64 candidates are kept as a bit mask (masks), so that the pair writing (step 6)
+  /// and the scatter repeat no overlap test for all but the largest primitives.
+  ///
+  /// Counting builds also count the references per leaf here, where every overlapped leaf is in
+  /// hand, instead of enumerating them all again after the allocation: each thread gives a block
+  /// a provisional number of its own when it first touches it (blockOrder, per pointer-matrix
+  /// entry) and counts its leaves in that numbering (leafCounts), without atomics; countLeaves()
+  /// copies (one thread) or adds up each block's counts into its final place. The counts, hence
+  /// the tree, are those of a separate pass. Two threads split the primitives into two contiguous
+  /// runs (fromBothEnds), so each touches about its own half of the blocks. With more threads
+  /// each thread touches most blocks and holds counts for most of the leaf storage: that pays on
+  /// small leaf levels (volume grids) but not on surfaces, whose leaf storage is ~10^6 entries;
+  /// past 2^21 leaves in the dense level countLeaves() counts in a pass of its own.
+  void countMark() {
+    MatrixTree& tree = tree_;
+    const int64_t n = n_;
+    const bool exact = exact_;
+    scratch_.counts.resize(static_cast<size_t>(n));
+    scratch_.masks.resize(exact ? static_cast<size_t>(n) : 0);
+    scratch_.marks.assign(tree.leaves_.pointerCount(), 0);
+    countHere_ = opt_.sort == BuildSort::Counting &&
+                 (threads_ <= 2 ||
+                  uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
+    bothEnds_ = threads_ == 2;
+    blockVolume_ = tree.leaves_.blockVolume();
+    perThread_.resize(countHere_ ? static_cast<size_t>(threads_) : 0);
+    if (countHere_) {
+      perThread_[0].blockOrder = &scratch_.tmpKeys;  // thread 0 reuses the tree's work arrays
+      perThread_[0].leafCounts = &scratch_.tmpValues;
+      for (ThreadCounts& t : perThread_) {
+        t.blockOrder->assign(tree.leaves_.pointerCount(), MT_NULL);
+        t.leafCounts->clear();
+      }
     }
-  };
-  // Candidate leaves are tested as boxes of one padded half size, given by their centres.
-  const Vec3 half(0.5 * leafSize.x + pad, 0.5 * leafSize.y + pad, 0.5 * leafSize.z + pad);
-  auto cellCentre = [&](int i, int j, int k) {
-    return Vec3(org.x + (i + 0.5) * leafSize.x, org.y + (j + 0.5) * leafSize.y, org.z + (k + 0.5) * leafSize.z);
-  };
-  // tree.nodeBox(H, {i, j, k}) with the same arithmetic, from locals (the per-reference data
-  // is written through byte pointers, after which the tree's members would be reloaded).
-  auto leafBox = [org, leafSize](int i, int j, int k) {
-    Box b;
-    const int c[3] = {i, j, k};
-    for (int a = 0; a < 3; ++a) {
-      b.lo[a] = org[a] + c[a] * leafSize[a];
-      b.hi[a] = org[a] + (c[a] + 1) * leafSize[a];
-    }
-    return b;
-  };
-
-  // ---- count + mark (step 2) ------------------------------------------------------------------
-  // The exact test's verdicts for the first 64 candidates are kept as a bit mask, so the pair
-  // writing of step 6 repeats no overlap test for all but the largest primitives.
-  LargeVector<uint32_t>& counts = scratch.counts;
-  LargeVector<uint64_t>& masks = scratch.masks;
-  LargeVector<uint8_t>& marks = scratch.marks;
-  counts.resize(static_cast<size_t>(n));
-  masks.resize(exact ? static_cast<size_t>(n) : 0);
-  marks.assign(tree.leaves_.pointerCount(), 0);
-  const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
-  // Counting builds also count the references per leaf here, where every overlapped leaf is in
-  // hand, instead of enumerating them all again after the allocation: each thread gives a block
-  // a provisional number of its own when it first touches it (blockOrder, per pointer-matrix
-  // entry) and counts its leaves in that numbering (leafCounts), without atomics; after the
-  // allocation the threads' counts of each block are copied (one thread) or added up to its
-  // final place. The counts, hence the tree, are those of the separate pass.
-  // Two threads split the primitives into two contiguous runs (from both ends), so each counts
-  // about its own half of the blocks: that pays on surfaces too (turbineblade, two threads:
-  // count+mark +7 ms, leaf counts -14 ms). With more threads each thread touches most blocks,
-  // so it holds counts for most of the leaf storage, then added up: that pays on volume grids
-  // (pipe_flow_tets: leaf counts 7-8 -> 0.1 ms) but not on surfaces, whose leaf storage is
-  // ~10^6 entries (lucy: count+mark +7-17 ms, leaf counts only -3-6 ms); there, past 2^21
-  // leaves in the dense level, the separate counting pass stays.
-  const bool countHere =
-      opt.sort == BuildSort::Counting &&
-      (threads <= 2 || uint64_t(tree.leaves_.pointerCount()) * tree.leaves_.blockVolume() <= (uint64_t{1} << 21));
-  const uint32_t blockVolume = tree.leaves_.blockVolume();
-  struct ThreadCounts {
-    LargeVector<uint32_t> ownOrder, ownCounts;
-    LargeVector<uint32_t>* blockOrder = &ownOrder;
-    LargeVector<uint32_t>* leafCounts = &ownCounts;
-    uint32_t touched = 0;
-  };
-  std::vector<ThreadCounts> perThread(countHere ? static_cast<size_t>(threads) : 0);
-  if (countHere) {
-    perThread[0].blockOrder = &scratch.tmpKeys;  // thread 0 reuses the tree's work arrays
-    perThread[0].leafCounts = &scratch.tmpValues;
-    for (ThreadCounts& t : perThread) {
-      t.blockOrder->assign(tree.leaves_.pointerCount(), MT_NULL);
-      t.leafCounts->clear();
-    }
-  }
-  // Two threads split the primitives from both ends (see the scatter); then each thread counts
-  // the blocks of its own contiguous run instead of most of them.
-  const bool bothEnds = threads == 2;
-  auto countMark = [&](int64_t i) {
-    const auto prim = prims.local(i);
-    ThreadCounts* tc = countHere ? &perThread[static_cast<size_t>(omp_get_thread_num())] : nullptr;
-    int lo[3], hi[3];
-    cellRange(prim.bounds(), lo, hi);
-    // A candidate range one cell thick along two axes needs no test: the triangle is convex, so
-    // it meets every slab of the third axis within its range, inside the one cell of the others.
-    const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
-    const bool test = exact && thin < 2;
-    uint32_t c = 0, cand = 0;
-    uint64_t mask = 0;
-    size_t lastBlock = ~size_t{0};
-    uint32_t* blockCounts = nullptr;  // countHere: the counts of block lastBlock
-    auto visit = [&](auto&& overlaps) {
-      for (int k = lo[2]; k <= hi[2]; ++k)
-        for (int j = lo[1]; j <= hi[1]; ++j)
-          for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
-            if (!overlaps(ii, j, k, cand)) continue;
-            if (cand < 64) mask |= uint64_t{1} << cand;
-            ++c;
-            const size_t blk = leaves.pointerIndex(ii, j, k);
-            if (blk != lastBlock) {
+    const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
+    const LeafGrid g = grid_;  // in locals: the block marks are byte stores
+    uint32_t* const counts = scratch_.counts.data();
+    uint64_t* const masks = scratch_.masks.data();
+    uint8_t* const marks = scratch_.marks.data();
+    const bool countHere = countHere_;
+    const uint32_t blockVolume = blockVolume_;
+    auto countOne = [&](int64_t i) {
+      const auto prim = prims_.local(i);
+      ThreadCounts* tc = countHere ? &perThread_[static_cast<size_t>(omp_get_thread_num())] : nullptr;
+      int lo[3], hi[3];
+      g.cellRange(prim.bounds(), lo, hi);
+      // A candidate range one cell thick along two axes needs no test: the primitive is convex,
+      // so it meets every slab of the third axis within its range, inside the one cell of the
+      // others.
+      const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
+      const bool test = exact && thin < 2;
+      uint32_t c = 0, cand = 0;
+      uint64_t mask = 0;
+      size_t lastBlock = ~size_t{0};
+      uint32_t* blockCounts = nullptr;  // countHere: the counts of block lastBlock
+      auto visit = [&](auto&& overlaps) {
+        for (int k = lo[2]; k <= hi[2]; ++k)
+          for (int j = lo[1]; j <= hi[1]; ++j)
+            for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
+              if (!overlaps(ii, j, k, cand)) continue;
+              if (cand < 64) mask |= uint64_t{1} << cand;
+              ++c;
+              const size_t blk = leaves.pointerIndex(ii, j, k);
+              if (blk != lastBlock) {
 #pragma omp atomic write
-              marks[blk] = 1;
-              lastBlock = blk;
-              if (countHere) {
-                LargeVector<uint32_t>& order = *tc->blockOrder;
-                if (order[blk] == MT_NULL) {
-                  order[blk] = tc->touched++;
-                  tc->leafCounts->resize(size_t(tc->touched) * blockVolume, 0);
+                marks[blk] = 1;
+                lastBlock = blk;
+                if (countHere) {
+                  LargeVector<uint32_t>& order = *tc->blockOrder;
+                  if (order[blk] == MT_NULL) {
+                    order[blk] = tc->touched++;
+                    tc->leafCounts->resize(size_t(tc->touched) * blockVolume, 0);
+                  }
+                  blockCounts = tc->leafCounts->data() + size_t(order[blk]) * blockVolume;
                 }
-                blockCounts = tc->leafCounts->data() + size_t(order[blk]) * blockVolume;
               }
+              if (countHere) ++blockCounts[leaves.localIndex(ii, j, k)];
             }
-            if (countHere) ++blockCounts[leaves.localIndex(ii, j, k)];
-          }
-    };
-    using Local = std::decay_t<decltype(prim)>;
-    if (!test) {
-      visit([](int, int, int, uint32_t) { return true; });
-    } else if constexpr (detail::HasVertices<Local>::value) {
-      // A candidate leaf that contains a point of the primitive overlaps it: the leaf's padded
-      // box holds the point (its index is computed as the candidate range's, and its round-off
-      // is far below the pad), so no separating axis exists and the test would say "overlap"
-      // too: the same verdicts, for a few multiplications per point instead of a dot product
-      // per axis. When those leaves are every candidate (a hexahedron about one leaf wide over
-      // its 2x2x2 leaves), no tester is built at all. Only tried where it can be the case (no
-      // more candidates than points): elsewhere (a tetrahedron over 8 candidates, a triangle)
-      // it saved fewer dot products than it cost.
-      const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
-      const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
-      // Uninitialised (a Vec3 array would be zeroed per cell): vertices() writes what is read.
-      union Points {
-        Points() {}
-        Vec3 at[8];
-      } pts;
-      Vec3* const v = pts.at;
-      const int nv = prim.vertices(v);
-      uint64_t known = 0;
-      if (numCand <= uint64_t(nv)) {
-        const int dims[3] = {nx, ny, nz};
-        for (int q = 0; q < nv; ++q) {
-          int c[3];
-          for (int a = 0; a < 3; ++a)
-            c[a] = std::min(std::max(cellIndexNonNegative((v[q][a] - org[a]) * invLeaf[a], 0, dims[a] - 1), lo[a]),
-                            hi[a]);
-          known |= uint64_t{1} << (((c[2] - lo[2]) * w1 + (c[1] - lo[1])) * w0 + (c[0] - lo[0]));
-        }
-      }
-      const uint64_t all = numCand >= 64 ? ~uint64_t{0} : (uint64_t{1} << numCand) - 1;
-      if (numCand <= uint64_t(nv) && known == all) {
+      };
+      if (!test) {
         visit([](int, int, int, uint32_t) { return true; });
-      } else {
-        const auto tester = prim.tester(half, v, nv);
-        visit([&](int x, int y, int z, uint32_t cd) {
-          return (cd < 64 && ((known >> cd) & 1)) || tester.overlaps(cellCentre(x, y, z));
-        });
-      }
-    } else {
-      // The separating-axis tester is built only for primitives that need it.
-      const auto tester = prim.tester(half);
-      visit([&](int x, int y, int z, uint32_t) { return tester.overlaps(cellCentre(x, y, z)); });
-    }
-    counts[i] = c;
-    if (exact) masks[i] = mask;
-  };
-  if (bothEnds) {
-    std::atomic<int64_t> taken{0};
-#pragma omp parallel num_threads(2)
-    detail::fromBothEnds(n, taken, countMark);
-  } else {
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
-    for (int64_t i = 0; i < n; ++i) countMark(i);
-  }
-  clock.lap("count+mark");
-
-  // ---- allocate blocks (steps 3-4) ------------------------------------------------------------
-  tree.leaves_.allocateMarked(marks.data(), lightThreads(int64_t(marks.size())));
-  clock.lap("alloc");
-
-  // The overlapped leaves of primitive i (local data `prim`), in the order of the count pass,
-  // from its bit mask: f(x, y, z) per leaf. Same decision rule as the count pass; beyond the 64
-  // masked candidates the test is repeated (only for the largest primitives).
-  // forEachLeafIn: the same over the candidate range [lo, hi] the caller has computed. Up to 64
-  // candidates, the mask's set bits are walked (forEachBit) instead of every candidate with a
-  // branch on its bit (coin flips on tetrahedra).
-  auto forEachLeafIn = [&](int64_t i, const auto& prim, const int lo[3], const int hi[3], auto&& f) {
-    if (!exact) {
-      // Bounding-box overlap: every candidate, x fastest (the mask's bit order), as plain loops:
-      // no bit positions to decode (fewer instructions per reference; see the commit message
-      // for what its timing could and could not show).
-      for (int z = lo[2]; z <= hi[2]; ++z)
-        for (int y = lo[1]; y <= hi[1]; ++y)
-          for (int x = lo[0]; x <= hi[0]; ++x) f(x, y, z);
-      return;
-    }
-    const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
-    const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
-    const uint64_t mask = masks[i];
-    if (numCand <= 64) {
-      detail::forEachBit(numCand == 64 ? mask : mask & ((uint64_t{1} << numCand) - 1), lo, w0, w1, f);
-      return;
-    }
-    // More than 64 candidates from here (exact overlap): the ones beyond the mask are tested
-    // again if the count pass tested them.
-    uint32_t cand = 0;
-    const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
-    const bool test = thin < 2;
-    auto emit = [&](auto&& beyondMask) {
-      for (int k = lo[2]; k <= hi[2]; ++k)
-        for (int j = lo[1]; j <= hi[1]; ++j)
-          for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
-            const bool in = cand < 64 ? ((mask >> cand) & 1) != 0 : beyondMask(ii, j, k);
-            if (in) f(ii, j, k);
+      } else if constexpr (detail::HasVertices<Local>::value) {
+        // A candidate leaf that contains a point of the primitive overlaps it: the leaf's padded
+        // box holds the point (its index is computed as the candidate range's, and its round-off
+        // is far below the pad), so no separating axis exists and the test would say "overlap"
+        // too: the same verdicts, for a few multiplications per point instead of a dot product
+        // per axis. When those leaves are every candidate (a hexahedron about one leaf wide over
+        // its 2x2x2 leaves), no tester is built at all. Tried only where it can be the case (no
+        // more candidates than points).
+        const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
+        const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
+        // Uninitialised (a Vec3 array would be zeroed per cell): vertices() writes what is read.
+        union Points {
+          Points() {}
+          Vec3 at[8];
+        } pts;
+        Vec3* const v = pts.at;
+        const int nv = prim.vertices(v);
+        uint64_t known = 0;
+        if (numCand <= uint64_t(nv)) {
+          for (int q = 0; q < nv; ++q) {
+            int cc[3];
+            for (int a = 0; a < 3; ++a)
+              cc[a] = std::min(
+                  std::max(cellIndexNonNegative((v[q][a] - g.org[a]) * g.invLeaf[a], 0, g.dims[a] - 1), lo[a]),
+                  hi[a]);
+            known |= uint64_t{1} << (((cc[2] - lo[2]) * w1 + (cc[1] - lo[1])) * w0 + (cc[0] - lo[0]));
           }
+        }
+        const uint64_t all = numCand >= 64 ? ~uint64_t{0} : (uint64_t{1} << numCand) - 1;
+        if (numCand <= uint64_t(nv) && known == all) {
+          visit([](int, int, int, uint32_t) { return true; });
+        } else {
+          const auto tester = prim.tester(g.half, v, nv);
+          visit([&](int x, int y, int z, uint32_t cd) {
+            return (cd < 64 && ((known >> cd) & 1)) || tester.overlaps(g.cellCentre(x, y, z));
+          });
+        }
+      } else {
+        // The separating-axis tester is built only for primitives that need it.
+        const auto tester = prim.tester(g.half);
+        visit([&](int x, int y, int z, uint32_t) { return tester.overlaps(g.cellCentre(x, y, z)); });
+      }
+      counts[i] = c;
+      if (exact) masks[i] = mask;
     };
-    if (test) {
-      const auto tester = prim.tester(half);
-      emit([&](int x, int y, int z) { return tester.overlaps(cellCentre(x, y, z)); });
+    if (bothEnds_) {
+      std::atomic<int64_t> taken{0};
+#pragma omp parallel num_threads(2)
+      detail::fromBothEnds(n, taken, countOne);
     } else {
-      emit([](int, int, int) { return true; });
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 512)
+      for (int64_t i = 0; i < n; ++i) countOne(i);
     }
-  };
-  auto forEachLeaf = [&](int64_t i, const auto& prim, auto&& f) {
-    int lo[3], hi[3];
-    cellRange(prim.bounds(), lo, hi);
-    forEachLeafIn(i, prim, lo, hi, f);
-  };
+    clock_.lap("count+mark");
+  }
 
-  LargeVector<uint32_t>& values = scratch.values;
-  uint64_t numPairs = 0;
-  if (opt.sort == BuildSort::Radix) {
-    // ---- scan counts (step 5) -----------------------------------------------------------------
-    LargeVector<uint32_t>& offsets = scratch.offsets;
-    offsets.resize(static_cast<size_t>(n));
-    numPairs = exclusiveScan(counts.data(), offsets.data(), static_cast<size_t>(n), threads);
-    if (numPairs >= MT_NULL)
-      throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
-    clock.lap("scan");
+  /// Steps 3-4: the exclusive scan of the block marks numbers the marked blocks; their pointers
+  /// are set and the blocks allocated (BlockSparseMatrix::allocateMarked).
+  void allocateBlocks() {
+    tree_.leaves_.allocateMarked(scratch_.marks.data(), lightThreads(int64_t(scratch_.marks.size())));
+    clock_.lap("alloc");
+  }
 
-    // ---- write pairs (step 6) -----------------------------------------------------------------
-    LargeVector<uint32_t>& keys = scratch.keys;
-    keys.resize(numPairs);
-    values.resize(numPairs);
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
+  /// Step 5 (BuildSort::Radix): the exclusive scan of the per-primitive counts gives each
+  /// primitive the offset of its first pair.
+  void scanCounts() {
+    scratch_.offsets.resize(static_cast<size_t>(n_));
+    numPairs_ = exclusiveScan(scratch_.counts.data(), scratch_.offsets.data(), static_cast<size_t>(n_), threads_);
+    checkPairCount();
+    clock_.lap("scan");
+  }
+
+  /// Step 6: each primitive writes its (leaf storage index, primitive) pairs from its scanned
+  /// offset on, in the order of step 2 (no atomics).
+  void writePairs() {
+    LargeVector<uint32_t>& keys = scratch_.keys;
+    LargeVector<uint32_t>& values = scratch_.values;
+    keys.resize(numPairs_);
+    values.resize(numPairs_);
+    const BlockSparseMatrix<MtLeafRange>& leaves = tree_.leaves_;
+    const uint32_t* const offsets = scratch_.offsets.data();
+    const int64_t n = n_;
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 512)
     for (int64_t i = 0; i < n; ++i) {
       uint32_t out = offsets[i];
-      forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
+      forEachLeaf(i, prims_.local(i), [&](int x, int y, int z) {
         keys[out] = leaves.storageIndex(x, y, z);
         values[out] = static_cast<uint32_t>(i);
         ++out;
       });
     }
-    clock.lap("pairs");
+    clock_.lap("pairs");
+  }
 
-    // ---- radix sort by node (step 7) ----------------------------------------------------------
-    {
-      const uint64_t maxKey = uint64_t(tree.leaves_.numBlocks()) * tree.leaves_.blockVolume();
-      radixSortPairs(keys, values, ceilLog2(std::max<uint64_t>(maxKey, 2)), threads, scratch.tmpKeys,
-                     scratch.tmpValues);
-    }
-    clock.lap("sort");
+  /// Step 7: stable radix sort of the pairs by leaf (the primitives of a leaf stay ascending).
+  void sortPairs() {
+    const uint64_t maxKey = uint64_t(tree_.leaves_.numBlocks()) * tree_.leaves_.blockVolume();
+    radixSortPairs(scratch_.keys, scratch_.values, ceilLog2(std::max<uint64_t>(maxKey, 2)), threads_,
+                   scratch_.tmpKeys, scratch_.tmpValues);
+    clock_.lap("sort");
+  }
 
-    // ---- leaf ranges from neighbouring keys (step 8) ------------------------------------------
-    {
-      MtLeafRange* data = tree.leaves_.data().data();
-      const int64_t m = static_cast<int64_t>(numPairs);
-      uint64_t leafCount = 0;
-#pragma omp parallel for num_threads(threads) schedule(static) reduction(+ : leafCount)
-      for (int64_t i = 0; i < m; ++i) {
-        if (i == 0 || keys[i] != keys[i - 1]) {
-          ++leafCount;
-          data[keys[i]].begin = static_cast<uint32_t>(i);
-          if (i > 0) data[keys[i - 1]].end = static_cast<uint32_t>(i);
-        }
+  /// Step 8: a leaf's range begins where its key differs from the previous one in the sorted
+  /// array and ends where the next leaf's begins; leaves with no pair keep begin = MT_NULL.
+  void leafRanges() {
+    MtLeafRange* data = tree_.leaves_.data().data();
+    const uint32_t* const keys = scratch_.keys.data();
+    const int64_t m = static_cast<int64_t>(numPairs_);
+    uint64_t leafCount = 0;
+#pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : leafCount)
+    for (int64_t i = 0; i < m; ++i) {
+      if (i == 0 || keys[i] != keys[i - 1]) {
+        ++leafCount;
+        data[keys[i]].begin = static_cast<uint32_t>(i);
+        if (i > 0) data[keys[i - 1]].end = static_cast<uint32_t>(i);
       }
-      if (m > 0) data[keys[m - 1]].end = static_cast<uint32_t>(m);
-      if (stats) stats->leaves = leafCount;
     }
-    clock.lap("offsets");
+    if (m > 0) data[keys[m - 1]].end = static_cast<uint32_t>(m);
+    if (stats_) stats_->leaves = leafCount;
+    clock_.lap("offsets");
+  }
 
-    // ---- per-reference data: a pass over the leaves, gathering each reference's primitive ---
-    if constexpr (Bytes > 0) {
-      refData->resize(static_cast<size_t>(numPairs) * Bytes);
-      uint8_t* out = refData->data();
-      const MtLeafRange* data = tree.leaves_.data().data();
-      const int64_t ne = static_cast<int64_t>(tree.leaves_.data().size());
-#pragma omp parallel num_threads(threads)
-      {
-        auto f = fn;  // one copy per thread
+  /// BuildSort::Radix with per-reference data: a pass over the leaves, fetching each reference's
+  /// primitive again (the primitives of a leaf are scattered over the input: fetched ahead).
+  void referenceData() {
+    refData_->resize(static_cast<size_t>(numPairs_) * Bytes);
+    uint8_t* out = refData_->data();
+    const MtLeafRange* data = tree_.leaves_.data().data();
+    const uint32_t* const values = scratch_.values.data();
+    const int64_t ne = static_cast<int64_t>(tree_.leaves_.data().size());
+    const int H = H_;
+#pragma omp parallel num_threads(threads_)
+    {
+      auto f = fn_;  // one copy per thread
 #pragma omp for schedule(dynamic, 256)
-        for (int64_t e = 0; e < ne; ++e) {
-          const MtLeafRange r = data[e];
-          if (r.begin == MT_NULL) continue;
-          int c[3];
-          tree.leaves_.entryCoords(static_cast<uint32_t>(e), c);
-          const Box lb = tree.nodeBox(H, c);
-          for (uint32_t k = r.begin; k < r.end; ++k) {
-            // The primitives of a leaf are scattered over the input: fetch ahead.
-            if (k + 16 < r.end) detail::prefetchPrimitive(prims, values[k + 16]);
-            f(out + size_t(k) * Bytes, prims.local(values[k]), lb);
-          }
+      for (int64_t e = 0; e < ne; ++e) {
+        const MtLeafRange r = data[e];
+        if (r.begin == MT_NULL) continue;
+        int c[3];
+        tree_.leaves_.entryCoords(static_cast<uint32_t>(e), c);
+        const Box lb = tree_.nodeBox(H, c);
+        for (uint32_t k = r.begin; k < r.end; ++k) {
+          if (k + 16 < r.end) detail::prefetchPrimitive(prims_, values[k + 16]);
+          f(out + size_t(k) * Bytes, prims_.local(values[k]), lb);
         }
       }
-      clock.lap("refdata");
     }
-  } else {
-    // ---- counting sort over the dense leaf storage --------------------------------------------
-    // After the allocation every leaf has a fixed storage index in [0, blocks x B^3): the
-    // references per leaf (counted by count+mark, or by a pass here), scan, scatter. With one
-    // thread every update is a plain one and the primitives arrive in ascending order. With two,
-    // thread 0 fills each leaf from its start with ascending ids and thread 1 from its end with
-    // descending ones (it walks its run backwards): plain stores that meet where the leaf is
-    // full, in ascending order again. With more, the cursors are shared (atomic) and each leaf's
-    // ids are sorted afterwards.
-    const bool shared = threads > 2;
+    clock_.lap("refdata");
+  }
+
+  /// BuildSort::Counting: after the allocation every leaf has a fixed storage index in
+  /// [0, blocks x B^3), so the references per leaf are counted into the leaf storage: from
+  /// count+mark's per-thread counts (each allocated block was touched by some thread; one
+  /// thread's counts are copied, several threads' added), or by a pass of atomic increments.
+  void countLeaves() {
+    MatrixTree& tree = tree_;
     const size_t L = tree.leaves_.data().size();
     const int64_t nl = static_cast<int64_t>(L);
-    LargeVector<uint32_t>& perLeaf = scratch.keys;    // references per leaf
-    LargeVector<uint32_t>& cursor = scratch.offsets;  // next free slot per leaf
-    cursor.resize(L);
-    if (countHere) {
-      // Counted by count+mark in each thread's first-touch block order: every allocated block
-      // was touched by some thread; one thread's counts are copied, several threads' added.
+    LargeVector<uint32_t>& perLeaf = scratch_.keys;  // references per leaf
+    scratch_.offsets.resize(L);                       // scanLeaves(): the next free slot per leaf
+    const int threads = threads_;
+    if (countHere_) {
       const std::vector<uint32_t>& ptr = tree.leaves_.pointers();
       const int64_t np = static_cast<int64_t>(ptr.size());
       if (threads == 1) {
@@ -727,11 +677,12 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       } else {
         perLeaf.assign(L, 0);
       }
+      const uint32_t blockVolume = blockVolume_;
 #pragma omp parallel for num_threads(lightThreads(nl)) schedule(static) if (threads > 1)
       for (int64_t p = 0; p < np; ++p) {
         if (ptr[p] == MT_NULL) continue;
         uint32_t* dst = perLeaf.data() + size_t(ptr[p]) * blockVolume;
-        for (const ThreadCounts& t : perThread) {
+        for (const ThreadCounts& t : perThread_) {
           const uint32_t b = (*t.blockOrder)[p];
           if (b == MT_NULL) continue;
           const uint32_t* src = t.leafCounts->data() + size_t(b) * blockVolume;
@@ -744,73 +695,96 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
       }
     } else {
       perLeaf.assign(L, 0);
+      const BlockSparseMatrix<MtLeafRange>& leaves = tree.leaves_;
+      const int64_t n = n_;
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 512)
       for (int64_t i = 0; i < n; ++i) {
-        forEachLeaf(i, prims.local(i), [&](int x, int y, int z) {
+        forEachLeaf(i, prims_.local(i), [&](int x, int y, int z) {
           uint32_t& c = perLeaf[leaves.storageIndex(x, y, z)];
 #pragma omp atomic update
           ++c;
         });
       }
     }
-    clock.lap("leaf counts");
+    clock_.lap("leaf counts");
+  }
 
-    numPairs = exclusiveScan(perLeaf.data(), cursor.data(), L, lightThreads(nl));
-    if (numPairs >= MT_NULL)
-      throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
-    {
-      MtLeafRange* data = tree.leaves_.data().data();
-      uint64_t leafCount = 0;
+  /// BuildSort::Counting: the exclusive scan over the leaf storage gives each leaf its range;
+  /// the scan is the first free slot of each leaf (its cursor). With two threads, thread 1 fills
+  /// each leaf from its end: its cursor, kept in the counts, becomes the slot above its next one.
+  void scanLeaves() {
+    LargeVector<uint32_t>& perLeaf = scratch_.keys;
+    LargeVector<uint32_t>& cursor = scratch_.offsets;
+    const size_t L = tree_.leaves_.data().size();
+    const int64_t nl = static_cast<int64_t>(L);
+    numPairs_ = exclusiveScan(perLeaf.data(), cursor.data(), L, lightThreads(nl));
+    checkPairCount();
+    MtLeafRange* data = tree_.leaves_.data().data();
+    const bool bothEnds = bothEnds_;
+    uint64_t leafCount = 0;
 #pragma omp parallel for num_threads(lightThreads(nl)) schedule(static) reduction(+ : leafCount)
-      for (int64_t e = 0; e < nl; ++e) {
-        if (perLeaf[e] == 0) continue;
-        ++leafCount;
-        data[e] = MtLeafRange{cursor[e], cursor[e] + perLeaf[e]};
-        if (bothEnds) perLeaf[e] = data[e].end;  // thread 1's cursor: the slot above its next one
-      }
-      if (stats) stats->leaves = leafCount;
+    for (int64_t e = 0; e < nl; ++e) {
+      if (perLeaf[e] == 0) continue;
+      ++leafCount;
+      data[e] = MtLeafRange{cursor[e], cursor[e] + perLeaf[e]};
+      if (bothEnds) perLeaf[e] = data[e].end;
     }
-    clock.lap("leaf scan");
+    if (stats_) stats_->leaves = leafCount;
+    clock_.lap("leaf scan");
+  }
 
-    // Scatter: each reference takes the next slot of its leaf. The primitive is in hand, so the
-    // per-reference data is written here too, next to its id.
-    values.resize(numPairs);
+  /// BuildSort::Counting: each reference takes the next slot of its leaf; the primitive is in
+  /// hand, so its per-reference data is written here too, next to its id. One thread takes the
+  /// primitives in ascending order; two take them from both ends (fromBothEnds), thread 0 filling
+  /// each leaf from its start with ascending ids and thread 1 from its end with descending ones,
+  /// plain stores that meet where the leaf is full, in ascending order again; more threads take
+  /// shared (atomic) cursors and orderLeaves() sorts each leaf afterwards.
+  void scatter() {
+    const bool shared = threads_ > 2;
+    const bool bothEnds = bothEnds_;
+    LargeVector<uint32_t>& perLeaf = scratch_.keys;
+    LargeVector<uint32_t>& cursor = scratch_.offsets;
+    LargeVector<uint32_t>& values = scratch_.values;
+    values.resize(numPairs_);
     uint8_t* out = nullptr;
     if constexpr (Bytes > 0) {
-      refData->resize(static_cast<size_t>(numPairs) * Bytes);
-      out = refData->data();
+      refData_->resize(static_cast<size_t>(numPairs_) * Bytes);
+      out = refData_->data();
     }
-    using Local = std::decay_t<decltype(prims.local(0))>;
     constexpr bool byAxis = Bytes > 0 && Bytes % 3 == 0 && detail::HasAxisData<std::decay_t<RefFn>, Local>::value;
     constexpr size_t axisBytes = Bytes / 3;
     // Per-axis parts of a cell's candidate range, kept for ranges up to this many leaves per axis.
     constexpr int kAxisTable = 32;
+    // The leaf grid in locals: the per-reference data is written through byte pointers, after
+    // which members would be reloaded.
+    const LeafGrid g = grid_;
+    const BlockSparseMatrix<MtLeafRange>& leaves = tree_.leaves_;
     // Every leaf interval's lower end and key, per axis (fn.axisKey once per interval and build,
     // not once per cell and interval: it divides), up to 2^16 intervals per axis.
     std::vector<double> intervalLo[3], intervalKey[3];
     [[maybe_unused]] bool keyed = false;
     if constexpr (byAxis) {
-      const int dims[3] = {nx, ny, nz};
-      keyed = nx <= 65536 && ny <= 65536 && nz <= 65536;
+      keyed = g.dims[0] <= 65536 && g.dims[1] <= 65536 && g.dims[2] <= 65536;
       for (int a = 0; keyed && a < 3; ++a) {
-        intervalLo[a].resize(size_t(dims[a]));
-        intervalKey[a].resize(size_t(dims[a]));
-        for (int c = 0; c < dims[a]; ++c) {
-          // leafBox's arithmetic: org + c * size to org + (c + 1) * size.
-          const double lo = org[a] + c * leafSize[a], hi = org[a] + (c + 1) * leafSize[a];
+        intervalLo[a].resize(size_t(g.dims[a]));
+        intervalKey[a].resize(size_t(g.dims[a]));
+        for (int c = 0; c < g.dims[a]; ++c) {
+          // LeafGrid::leafBox's arithmetic: org + c * size to org + (c + 1) * size.
+          const double lo = g.org[a] + c * g.leafSize[a], hi = g.org[a] + (c + 1) * g.leafSize[a];
           intervalLo[a][size_t(c)] = lo;
-          intervalKey[a][size_t(c)] = fn.axisKey(lo, hi);
+          intervalKey[a][size_t(c)] = fn_.axisKey(lo, hi);
         }
       }
     }
+    const int64_t n = n_;
     std::atomic<int64_t> taken{0};  // fromBothEnds' chunks
-#pragma omp parallel num_threads(threads)
+#pragma omp parallel num_threads(threads_)
     {
-      auto f = fn;  // one copy per thread
+      auto f = fn_;  // one copy per thread
       uint8_t table[3][kAxisTable][byAxis ? axisBytes : 1];
       const bool fromEnd = bothEnds && omp_get_thread_num() == 1;
       auto scatterOne = [&](int64_t i) {
-        const auto prim = prims.local(i);
+        const auto prim = prims_.local(i);
         auto takeSlot = [&](int x, int y, int z) {
           const uint32_t e = leaves.storageIndex(x, y, z);
           uint32_t slot;
@@ -828,15 +802,14 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
         };
         if constexpr (byAxis) {
           int lo[3], hi[3];
-          cellRange(prim.bounds(), lo, hi);
+          g.cellRange(prim.bounds(), lo, hi);
           if (hi[0] - lo[0] < kAxisTable && hi[1] - lo[1] < kAxisTable && hi[2] - lo[2] < kAxisTable) {
-            // The leaf's interval on axis a is leafBox's: org + c * size to org + (c + 1) * size.
             for (int a = 0; a < 3; ++a)
               for (int c = lo[a]; c <= hi[a]; ++c) {
                 if (keyed) {
                   f.axis(table[a][c - lo[a]], prim, a, intervalLo[a][size_t(c)], intervalKey[a][size_t(c)]);
                 } else {
-                  const double l = org[a] + c * leafSize[a], h = org[a] + (c + 1) * leafSize[a];
+                  const double l = g.org[a] + c * g.leafSize[a], h = g.org[a] + (c + 1) * g.leafSize[a];
                   f.axis(table[a][c - lo[a]], prim, a, l, f.axisKey(l, h));
                 }
               }
@@ -851,7 +824,7 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
         }
         forEachLeaf(i, prim, [&](int x, int y, int z) {
           const uint32_t slot = takeSlot(x, y, z);
-          if constexpr (Bytes > 0) f(out + size_t(slot) * Bytes, prim, leafBox(x, y, z));
+          if constexpr (Bytes > 0) f(out + size_t(slot) * Bytes, prim, g.leafBox(x, y, z));
         });
       };
       if (bothEnds) {
@@ -861,90 +834,247 @@ void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt
         for (int64_t i = 0; i < n; ++i) scatterOne(i);
       }
     }
-    clock.lap("scatter");
+    clock_.lap("scatter");
+  }
 
-    // With more than two threads a leaf's slots were taken in any order: sort each leaf's ids
-    // (distinct) back to ascending, the radix sort's stable order.
-    if (shared) {
-      const MtLeafRange* data = tree.leaves_.data().data();
-      uint8_t* payload = Bytes > 0 ? refData->data() : nullptr;
-#pragma omp parallel num_threads(threads)
-      {
-        std::vector<detail::Reference<Bytes>> buf;
+  /// BuildSort::Counting with more than two threads: a leaf's slots were taken in any order, so
+  /// each leaf's (distinct) ids are sorted back to ascending, the radix sort's stable order,
+  /// their per-reference data along with them.
+  void orderLeaves() {
+    if (threads_ <= 2) return;
+    const MtLeafRange* data = tree_.leaves_.data().data();
+    const int64_t nl = static_cast<int64_t>(tree_.leaves_.data().size());
+    uint32_t* const values = scratch_.values.data();
+    uint8_t* payload = Bytes > 0 ? refData_->data() : nullptr;
+#pragma omp parallel num_threads(threads_)
+    {
+      std::vector<detail::Reference<Bytes>> buf;
 #pragma omp for schedule(dynamic, 1024)
-        for (int64_t e = 0; e < nl; ++e) {
-          const MtLeafRange r = data[e];
-          if (r.begin != MT_NULL && r.end - r.begin > 1)
-            detail::sortLeaf<Bytes>(values.data(), payload, r.begin, r.end, buf);
+      for (int64_t e = 0; e < nl; ++e) {
+        const MtLeafRange r = data[e];
+        if (r.begin != MT_NULL && r.end - r.begin > 1) detail::sortLeaf<Bytes>(values, payload, r.begin, r.end, buf);
+      }
+    }
+    clock_.lap("leaf order");
+  }
+
+  /// The sorted pairs' primitive half is the tree's primitive list (§5.1: "The triangle portion
+  /// can be directly copied"); the tree's previous list becomes the work array.
+  void keepPrimitiveList() { tree_.prims_.swap(scratch_.values); }
+
+  /// Step 9: existence up to the root, level by level: each allocated child block marks the one
+  /// parent block it maps into (scan and allocation as in steps 3-4), then every existing child
+  /// entry sets its parent's existence byte (a byte store of 1 by every writer: the result does
+  /// not depend on their order). Only allocated child entries are read, contiguously.
+  void propagate() {
+    MatrixTree& tree = tree_;
+    const int H = H_;
+    for (int l = H - 1; l >= 0; --l) {
+      const auto& pl = tree.logDims_[l];
+      const auto& cl = tree.logDims_[l + 1];
+      const int sh[3] = {cl[0] - pl[0], cl[1] - pl[1], cl[2] - pl[2]};
+      BlockSparseMatrix<uint8_t>& parent = tree.inner_[l];
+      parent.reset(1 << pl[0], 1 << pl[1], 1 << pl[2], opt_.blockEdge, 0);
+      const MtSparseDesc& cd = (l + 1 == H) ? tree.leaves_.desc() : tree.inner_[l + 1].desc();
+      const std::vector<uint32_t>& cptr = (l + 1 == H) ? tree.leaves_.pointers() : tree.inner_[l + 1].pointers();
+      std::vector<uint8_t> pmarks(parent.pointerCount(), 0);
+      const int64_t ncp = static_cast<int64_t>(cptr.size());
+#pragma omp parallel for num_threads(lightThreads(ncp)) schedule(static)
+      for (int64_t p = 0; p < ncp; ++p) {
+        if (cptr[p] == MT_NULL) continue;
+        const int bx = static_cast<int>(p % cd.ptrDims[0]);
+        const int by = static_cast<int>((p / cd.ptrDims[0]) % cd.ptrDims[1]);
+        const int bz = static_cast<int>(p / (int64_t(cd.ptrDims[0]) * cd.ptrDims[1]));
+        const int i = (bx << cd.logBlock[0]) >> sh[0], j = (by << cd.logBlock[1]) >> sh[1],
+                  k = (bz << cd.logBlock[2]) >> sh[2];
+#pragma omp atomic write
+        pmarks[parent.pointerIndex(i, j, k)] = 1;
+      }
+      parent.allocateMarked(pmarks.data(), lightThreads(int64_t(pmarks.size())));
+      // Block by block: a block's first entry gives its origin (entryCoords' divisions once per
+      // block, not per entry: a surface's leaf level has ~10^6 entries), its entries' coordinates
+      // are the origin plus the bits of the local index.
+      uint8_t* pdata = parent.data().data();
+      const int64_t ncb = int64_t(l + 1 == H ? tree.leaves_.numBlocks() : tree.inner_[l + 1].numBlocks());
+      const uint32_t cbv = cd.blockVolume;
+      const int lbx = cd.logBlock[0], lby = cd.logBlock[1];
+      const uint32_t mx = (1u << lbx) - 1, my = (1u << lby) - 1;
+      const MtLeafRange* leafData = tree.leaves_.data().data();
+      const uint8_t* innerData = l + 1 == H ? nullptr : tree.inner_[l + 1].data().data();
+#pragma omp parallel for num_threads(lightThreads(ncb * cbv)) schedule(static)
+      for (int64_t b = 0; b < ncb; ++b) {
+        int o[3];
+        const uint32_t first = static_cast<uint32_t>(b) * cbv;
+        if (innerData) tree.inner_[l + 1].entryCoords(first, o);
+        else tree.leaves_.entryCoords(first, o);
+        for (uint32_t q = 0; q < cbv; ++q) {
+          const bool exists = innerData ? innerData[first + q] != 0 : leafData[first + q].begin != MT_NULL;
+          if (!exists) continue;
+          const int c[3] = {o[0] | int(q & mx), o[1] | int((q >> lbx) & my), o[2] | int(q >> (lbx + lby))};
+          const uint32_t s = parent.storageIndex(c[0] >> sh[0], c[1] >> sh[1], c[2] >> sh[2]);
+#pragma omp atomic write
+          pdata[s] = 1;
         }
       }
-      clock.lap("leaf order");
     }
+    tree.empty_ = false;
+    clock_.lap("propagate");
   }
-  tree.prims_.swap(values);
 
-  // ---- existence up to the root (step 9) ------------------------------------------------------
-  for (int l = H - 1; l >= 0; --l) {
-    const auto& pl = tree.logDims_[l];
-    const auto& cl = tree.logDims_[l + 1];
-    const int sh[3] = {cl[0] - pl[0], cl[1] - pl[1], cl[2] - pl[2]};
-    BlockSparseMatrix<uint8_t>& parent = tree.inner_[l];
-    parent.reset(1 << pl[0], 1 << pl[1], 1 << pl[2], opt.blockEdge, 0);
-    const MtSparseDesc& cd = (l + 1 == H) ? tree.leaves_.desc() : tree.inner_[l + 1].desc();
-    const std::vector<uint32_t>& cptr =
-        (l + 1 == H) ? tree.leaves_.pointers() : tree.inner_[l + 1].pointers();
-    // A child block maps into exactly one parent block; mark it.
-    std::vector<uint8_t> pmarks(parent.pointerCount(), 0);
-    const int64_t ncp = static_cast<int64_t>(cptr.size());
-#pragma omp parallel for num_threads(lightThreads(ncp)) schedule(static)
-    for (int64_t p = 0; p < ncp; ++p) {
-      if (cptr[p] == MT_NULL) continue;
-      const int bx = static_cast<int>(p % cd.ptrDims[0]);
-      const int by = static_cast<int>((p / cd.ptrDims[0]) % cd.ptrDims[1]);
-      const int bz = static_cast<int>(p / (int64_t(cd.ptrDims[0]) * cd.ptrDims[1]));
-      const int i = (bx << cd.logBlock[0]) >> sh[0], j = (by << cd.logBlock[1]) >> sh[1],
-                k = (bz << cd.logBlock[2]) >> sh[2];
-#pragma omp atomic write
-      pmarks[parent.pointerIndex(i, j, k)] = 1;
-    }
-    parent.allocateMarked(pmarks.data(), lightThreads(int64_t(pmarks.size())));
-    // Scatter existence from every existing child entry to its parent (a byte store of 1 by
-    // every writer: the result does not depend on their order). Only allocated child entries
-    // are read, contiguously.
-    // Block by block: a block's first entry gives its origin (entryCoords' divisions once per
-    // block, not per entry: a surface's leaf level has ~10^6 entries), its entries' coordinates
-    // are the origin plus the bits of the local index.
-    uint8_t* pdata = parent.data().data();
-    const int64_t ncb = int64_t(l + 1 == H ? tree.leaves_.numBlocks() : tree.inner_[l + 1].numBlocks());
-    const uint32_t cbv = cd.blockVolume;
-    const int lbx = cd.logBlock[0], lby = cd.logBlock[1];
-    const uint32_t mx = (1u << lbx) - 1, my = (1u << lby) - 1;
-    const MtLeafRange* leafData = tree.leaves_.data().data();
-    const uint8_t* innerData = l + 1 == H ? nullptr : tree.inner_[l + 1].data().data();
-#pragma omp parallel for num_threads(lightThreads(ncb * cbv)) schedule(static)
-    for (int64_t b = 0; b < ncb; ++b) {
-      int o[3];
-      const uint32_t first = static_cast<uint32_t>(b) * cbv;
-      if (innerData) tree.inner_[l + 1].entryCoords(first, o);
-      else tree.leaves_.entryCoords(first, o);
-      for (uint32_t q = 0; q < cbv; ++q) {
-        const bool exists = innerData ? innerData[first + q] != 0 : leafData[first + q].begin != MT_NULL;
-        if (!exists) continue;
-        const int c[3] = {o[0] | int(q & mx), o[1] | int((q >> lbx) & my), o[2] | int(q >> (lbx + lby))};
-        const uint32_t s = parent.storageIndex(c[0] >> sh[0], c[1] >> sh[1], c[2] >> sh[2]);
-#pragma omp atomic write
-        pdata[s] = 1;
+  /// The ray walk's caches (MatrixTree::buildWalkCaches), then the totals.
+  void finish() {
+    tree_.buildWalkCaches(lightThreads(int64_t(tree_.leaves_.data().size())));
+    clock_.lap("walk caches");
+    if (stats_) stats_->references = numPairs_;
+    clock_.finish();
+  }
+
+ private:
+  using Local = std::decay_t<decltype(std::declval<const Prims&>().local(int64_t{0}))>;
+
+  /// The leaf level's grid as the passes over the primitives compute with it: origin (the root
+  /// box's lo), 1 / leaf size (MatrixTree::invLeaf_), leaf size, the padded half size of a
+  /// candidate leaf, and the leaves per axis.
+  struct LeafGrid {
+    Vec3 org, invLeaf, leafSize, half;
+    int dims[3] = {1, 1, 1};
+    /// The candidate leaves of a box (clamped): the floor of the local coordinate by
+    /// cellIndexNonNegative (negatives and NaN clamp to 0), without a floor call per coordinate.
+    void cellRange(const Box& b, int lo[3], int hi[3]) const {
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = cellIndexNonNegative((b.lo[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
+        hi[a] = cellIndexNonNegative((b.hi[a] - org[a]) * invLeaf[a], 0, dims[a] - 1);
       }
     }
+    /// Candidate leaves are tested as boxes of one padded half size, given by their centres.
+    Vec3 cellCentre(int i, int j, int k) const {
+      return Vec3(org.x + (i + 0.5) * leafSize.x, org.y + (j + 0.5) * leafSize.y, org.z + (k + 0.5) * leafSize.z);
+    }
+    /// MatrixTree::nodeBox(H, {i, j, k}), the same arithmetic.
+    Box leafBox(int i, int j, int k) const {
+      Box b;
+      const int c[3] = {i, j, k};
+      for (int a = 0; a < 3; ++a) {
+        b.lo[a] = org[a] + c[a] * leafSize[a];
+        b.hi[a] = org[a] + (c[a] + 1) * leafSize[a];
+      }
+      return b;
+    }
+  };
+
+  /// A thread's counts of count+mark for the counting sort (see countMark()).
+  struct ThreadCounts {
+    LargeVector<uint32_t> ownOrder, ownCounts;
+    LargeVector<uint32_t>* blockOrder = &ownOrder;
+    LargeVector<uint32_t>* leafCounts = &ownCounts;
+    uint32_t touched = 0;
+  };
+
+  /// Threads for a light pass over m items (see kSerialBelow).
+  int lightThreads(int64_t m) const { return m >= kSerialBelow ? threads_ : 1; }
+
+  void checkPairCount() const {
+    if (numPairs_ >= MT_NULL)
+      throw std::length_error("MatrixTree: more than 2^32 (leaf, primitive) pairs; lower the height");
   }
-  tree.empty_ = false;
-  clock.lap("propagate");
-  tree.buildWalkCaches(lightThreads(int64_t(tree.leaves_.data().size())));
-  clock.lap("walk caches");
-  if (stats) {
-    stats->references = numPairs;
+
+  /// The overlapped leaves of primitive i (local data `prim`) in its candidate range [lo, hi],
+  /// in the order of count+mark: f(x, y, z) per leaf, from the primitive's bit mask, by the same
+  /// decision rule; beyond the 64 masked candidates the test is repeated (only for the largest
+  /// primitives). Up to 64 candidates, the mask's set bits are walked (forEachBit) instead of
+  /// every candidate with a branch on its bit.
+  template <class P, class F>
+  void forEachLeafIn(int64_t i, const P& prim, const int lo[3], const int hi[3], F&& f) const {
+    if (!exact_) {
+      // Bounding-box overlap: every candidate, x fastest (the mask's bit order).
+      for (int z = lo[2]; z <= hi[2]; ++z)
+        for (int y = lo[1]; y <= hi[1]; ++y)
+          for (int x = lo[0]; x <= hi[0]; ++x) f(x, y, z);
+      return;
+    }
+    const int w0 = hi[0] - lo[0] + 1, w1 = hi[1] - lo[1] + 1;
+    const uint64_t numCand = uint64_t(w0) * uint64_t(w1) * uint64_t(hi[2] - lo[2] + 1);
+    const uint64_t mask = scratch_.masks[i];
+    if (numCand <= 64) {
+      detail::forEachBit(numCand == 64 ? mask : mask & ((uint64_t{1} << numCand) - 1), lo, w0, w1, f);
+      return;
+    }
+    // More than 64 candidates: the ones beyond the mask are tested again if count+mark tested them.
+    uint32_t cand = 0;
+    const int thin = (lo[0] == hi[0]) + (lo[1] == hi[1]) + (lo[2] == hi[2]);
+    const bool test = thin < 2;
+    auto emit = [&](auto&& beyondMask) {
+      for (int k = lo[2]; k <= hi[2]; ++k)
+        for (int j = lo[1]; j <= hi[1]; ++j)
+          for (int ii = lo[0]; ii <= hi[0]; ++ii, ++cand) {
+            const bool in = cand < 64 ? ((mask >> cand) & 1) != 0 : beyondMask(ii, j, k);
+            if (in) f(ii, j, k);
+          }
+    };
+    if (test) {
+      const auto tester = prim.tester(grid_.half);
+      emit([&](int x, int y, int z) { return tester.overlaps(grid_.cellCentre(x, y, z)); });
+    } else {
+      emit([](int, int, int) { return true; });
+    }
   }
-  clock.finish();
+  /// forEachLeafIn over the primitive's own candidate range.
+  template <class P, class F>
+  void forEachLeaf(int64_t i, const P& prim, F&& f) const {
+    int lo[3], hi[3];
+    grid_.cellRange(prim.bounds(), lo, hi);
+    forEachLeafIn(i, prim, lo, hi, f);
+  }
+
+  const Prims& prims_;
+  const BuildOptions& opt_;
+  MatrixTree& tree_;
+  BuildStats* stats_;
+  LargeVector<uint8_t>* refData_;
+  RefFn& fn_;
+  MatrixTree::BuildScratch& scratch_;
+  const int threads_;
+  const int64_t n_;
+  const bool exact_;
+  detail::PhaseClock clock_;
+  int H_ = 0;
+  LeafGrid grid_;
+  bool countHere_ = false;  // BuildSort::Counting: count+mark counts the references per leaf
+  bool bothEnds_ = false;   // two threads: the primitives from both ends (fromBothEnds)
+  uint32_t blockVolume_ = 0;
+  std::vector<ThreadCounts> perThread_;
+  uint64_t numPairs_ = 0;
+};
+
+template <class Prims>
+template <size_t Bytes, class RefFn>
+void MatrixTreeBuilder<Prims>::build(const Prims& prims, const BuildOptions& opt, MatrixTree& tree,
+                                     BuildStats* stats, LargeVector<uint8_t>* refData, RefFn&& fn) {
+  detail::checkBuildOptions(opt, prims.size());
+  if constexpr (Bytes > 0) {
+    if (!refData) throw std::invalid_argument("MatrixTree: per-reference data needs an output vector");
+    refData->clear();
+  }
+  if (stats) *stats = BuildStats{};
+  Run<Bytes, std::remove_reference_t<RefFn>> run(prims, opt, tree, stats, refData, fn);
+  if (!run.setup()) return;  // no primitive: the tree is empty
+  run.countMark();
+  run.allocateBlocks();
+  if (opt.sort == BuildSort::Radix) {
+    run.scanCounts();
+    run.writePairs();
+    run.sortPairs();
+    run.leafRanges();
+    if constexpr (Bytes > 0) run.referenceData();
+  } else {
+    run.countLeaves();
+    run.scanLeaves();
+    run.scatter();
+    run.orderLeaves();
+  }
+  run.keepPrimitiveList();
+  run.propagate();
+  run.finish();
 }
 
 }  // namespace mtree

@@ -101,10 +101,10 @@ class TransferTable {
 struct VolumeBuildOptions {
   bool sparse = true;   // false: allocate every block (the dense reference, same code path)
   bool compact = true;  // 8/16-bit integer input: keep its width, bricks with an apron (UInt8/UInt16)
-  /// Floating-point input whose values are all integers spanning at most 65535: store it as
-  /// UInt8/UInt16 too (lossless; both back ends read those bricks). Off by default: float input
-  /// keeps the storage its type names.
-  bool compactIntegralFloat = false;
+  /// Input of any other type (float, or integers wider than 16 bits, or any input with compact
+  /// off) whose values are all integers spanning at most 65535: store it as UInt8/UInt16 too
+  /// (lossless; both back ends read those bricks). false: such input keeps Float32 blocks.
+  bool compactIntegralFloat = true;
   int threads = 0;      // 0 = OpenMP's default
 };
 
@@ -293,8 +293,7 @@ struct VolumeRenderOptions {
   int threads = 0;                   // 0 = OpenMP's default
   /// UInt8/UInt16 storage, float, unshaded: march 8 samples at a time with AVX2 where the CPU has
   /// it (chosen at run time); every storage: set perspective rays up 4 at a time with AVX2. false:
-  /// the SSE2 marcher and the scalar set-up. Both give the same image bit for bit; the environment
-  /// variable MATRIXTREE_VOLUME_SIMD=sse2 also forces the SSE2 ones.
+  /// the SSE2 marcher and the scalar set-up. Both give the same image bit for bit.
   bool vectorized = true;
 };
 
@@ -338,7 +337,8 @@ inline float earlyTerminationThreshold(const VolumeRenderOptions& opt) {
 std::vector<float> upsampleRGBA(const std::vector<float>& small, int w, int h, int W, int H, int threads);
 
 // --------------------------------------------------------------------------------------------
-// BlockSparseVolume::build: the typed part (conversion), the rest is in volume.cpp.
+// BlockSparseVolume::build: the typed part (conversion); the classification is in
+// engine/src/volume/classify.cpp.
 
 template <typename T>
 void BlockSparseVolume::build(const T* values, const int dims[3], const TransferTable& tf,
