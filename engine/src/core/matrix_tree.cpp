@@ -145,13 +145,21 @@ void MatrixTree::buildStepTable(int threads) {
   uint64_t leaves = 0;
   for (const uint64_t w : leafMask_) leaves += static_cast<uint64_t>(__builtin_popcountll(w));
   if (2 * leaves > uint64_t(nb) * 512) return;
-  bool uniform = true;
-  for (int l = 0; l <= H; ++l)
+  for (int l = 0; l <= H; ++l) {
     for (int a = 0; a < 3; ++a) {
       stepShift_[l][a] = logDims_[H][a] - logDims_[l][a];
-      uniform = uniform && stepShift_[l][a] == H - l;
+      stepMask_[l][a] = ~((1 << stepShift_[l][a]) - 1);
     }
-  stepUniform_ = uniform;
+    stepMask_[l][3] = -1;
+  }
+  // The walk computes pointer-matrix indices with shifts: a power of two of cells per axis.
+  for (int a = 0; a < 2; ++a) {
+    const int cells = int(leaves_.desc().ptrDims[a]);
+    int lg = 0;
+    while ((1 << lg) < cells) ++lg;
+    if ((1 << lg) != cells) return;
+    stepLogPtr_[a] = lg;
+  }
   // Per block, nested fills of the leaf bits: fill[k] has a cell's bit set when its ancestor at
   // level H - k holds a leaf (k = 1 .. blockLevels_, each a union of aligned groups of cells:
   // the children's footprints merged along the axes split between the two levels). An empty

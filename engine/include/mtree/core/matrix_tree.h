@@ -351,9 +351,11 @@ class MatrixTree {
   std::vector<uint8_t> stepLevel_;
   std::vector<uint32_t> stepBlock_;
   // Per level, the bottom-level cells per node along each axis as a shift (logDims[H] -
-  // logDims[l]); stepUniform_: it is H - l on every axis (an octree with a cubic root).
+  // logDims[l]), and ~(2^shift - 1): a bottom-level coordinate ANDed with it is the first
+  // bottom-level cell of its node at that level (TableWalk::step).
   std::array<std::array<int, 3>, MT_MAX_LEVELS> stepShift_{};
-  bool stepUniform_ = false;
+  std::array<std::array<int, 4>, MT_MAX_LEVELS> stepMask_{};
+  int stepLogPtr_[2] = {0, 0};  // log2 of the leaf pointer matrix's cells along x and y
   bool stepTableOn_ = true;
   /// Fills the step table after buildBlockEmpty() (leaves it empty where nodeOf() is not
   /// available or the blocks are mostly leaves).
@@ -578,7 +580,7 @@ struct RayClip {
   double inv[3], never[3];
   bool up[3];
   double t0, t1;
-  bool clip(const Box& root, Vec3 o, Vec3 d, double tmin, double tmax) {
+  MT_ALWAYS_INLINE bool clip(const Box& root, Vec3 o, Vec3 d, double tmin, double tmax) {
     if (!isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return false;
     if (d.x == 0 && d.y == 0 && d.z == 0) return false;
     bool moves[3];
@@ -677,30 +679,43 @@ struct TableStep {
 /// caller tests this step's leaf.
 class MatrixTree::TableWalk {
  public:
+  /// What a step reads: the step table (bytes, per-pointer-cell block offsets), the leaf ranges,
+  /// the per-level masks, and the bottom level's shape. The leaf level's pointer matrix has a
+  /// power of two of cells along each axis (the level's 2^logDim cells over blocks of 8, or one),
+  /// so a cell's pointer is ((z >> 3) << (lx + ly)) | ((y >> 3) << lx) | (x >> 3).
+  struct Tables {
+    const uint8_t* bytes;
+    const uint32_t* blocks;
+    const MtLeafRange* ranges;
+    const std::array<int, 4>* mask;  // stepMask_: lane 3 is -1
+    Box root;
+    Vec3 invLeaf, cs;
+    int dim[3];
+    int logPx, logPy;
+    int maxSteps;
+  };
   /// Only where tree.hasStepTable().
-  explicit TableWalk(const MatrixTree& t)
-      : bytes_(t.stepLevel_.data()),
-        blocks_(t.stepBlock_.data()),
-        ranges_(t.leaves_.data().data()),
-        prims_(t.prims_.data()),
-        shift_(t.stepShift_.data()),
-        root_(t.root_),
-        invLeaf_(t.invLeaf_),
-        cs_(t.cellSize_[t.height_]),
-        px_(size_t(t.leaves_.desc().ptrDims[0])),
-        py_(size_t(t.leaves_.desc().ptrDims[1])),
-        H_(t.height_),
-        uniform_(t.stepUniform_) {
-    for (int a = 0; a < 3; ++a) dim_[a] = t.dim(t.height_, a);
-    maxSteps_ = 3 * (dim_[0] + dim_[1] + dim_[2]) + 8;
+  explicit MT_ALWAYS_INLINE TableWalk(const MatrixTree& t) {
+    k_.bytes = t.stepLevel_.data();
+    k_.blocks = t.stepBlock_.data();
+    k_.ranges = t.leaves_.data().data();
+    k_.mask = t.stepMask_.data();
+    k_.root = t.root_;
+    k_.invLeaf = t.invLeaf_;
+    k_.cs = t.cellSize_[t.height_];
+    for (int a = 0; a < 3; ++a) k_.dim[a] = t.dim(t.height_, a);
+    k_.logPx = t.stepLogPtr_[0];
+    k_.logPy = t.stepLogPtr_[1];
+    k_.maxSteps = 3 * (k_.dim[0] + k_.dim[1] + k_.dim[2]) + 8;
   }
+  const Tables& tables() const { return k_; }
   /// Sets r up for the ray o + t d, t in [tmin, tmax]; false if it has no cell to walk (it misses
   /// the root box, or bad input: non-finite, zero direction, tmin > tmax or NaN).
   MT_ALWAYS_INLINE bool start(Vec3 o, Vec3 d, double tmin, double tmax, TableRay& r) const {
     detail::RayClip c;
-    if (!c.clip(root_, o, d, tmin, tmax)) return false;
+    if (!c.clip(k_.root, o, d, tmin, tmax)) return false;
     for (int a = 0; a < 3; ++a) {
-      r.o[a] = o[a] - root_.lo[a];
+      r.o[a] = o[a] - k_.root.lo[a];
       r.d[a] = d[a];
       r.inv[a] = c.inv[a];
       r.never[a] = c.never[a];
@@ -708,22 +723,22 @@ class MatrixTree::TableWalk {
     }
     r.t1 = c.t1;
     r.te = c.t0;
-    for (int a = 0; a < 3; ++a) r.L[a] = cellIndexNonNegative((r.o[a] + r.d[a] * c.t0) * invLeaf_[a], 0, dim_[a] - 1);
+    for (int a = 0; a < 3; ++a)
+      r.L[a] = cellIndexNonNegative((r.o[a] + r.d[a] * c.t0) * k_.invLeaf[a], 0, k_.dim[a] - 1);
     r.e = entry(r.L[0], r.L[1], r.L[2]);
-    r.stepsLeft = maxSteps_;
+    r.stepsLeft = k_.maxSteps;
     return true;
   }
   MT_ALWAYS_INLINE TableStep step(TableRay& r) const {
-    const uint8_t v = bytes_[r.e];
-    const int level = v & ~kStepLeaf;
-    int s[3];
-    for (int a = 0; a < 3; ++a) s[a] = uniform_ ? H_ - level : shift_[level][a];
+    const uint8_t v = k_.bytes[r.e];
+    // The node's bottom-level cells along each axis: L with its low bits cleared (lo) or set (hi).
+    const int* m = k_.mask[v & ~kStepLeaf].data();
     int lo[3], hi[3];
     double tx[3];
     for (int a = 0; a < 3; ++a) {
-      lo[a] = (r.L[a] >> s[a]) << s[a];
-      hi[a] = lo[a] + (1 << s[a]) - 1;
-      tx[a] = detail::planeCrossing(r.up[a] ? hi[a] + 1 : lo[a], cs_[a], r.o[a], r.inv[a], r.never[a]);
+      lo[a] = r.L[a] & m[a];
+      hi[a] = r.L[a] | ~m[a];
+      tx[a] = detail::planeCrossing(r.up[a] ? hi[a] + 1 : lo[a], k_.cs[a], r.o[a], r.inv[a], r.never[a]);
     }
     TableStep out;
     const int ax = detail::nearestExit(tx[0], tx[1], tx[2], r.t1, out.tExit);
@@ -735,41 +750,30 @@ class MatrixTree::TableWalk {
     for (int a = 0; a < 3; ++a) {
       out.L[a] = r.L[a];
       // A bottom-level node has lo = hi: the clamp keeps its coordinate.
-      n[a] = detail::clampCell((r.o[a] + r.d[a] * out.tExit) * invLeaf_[a], lo[a], hi[a]);
+      n[a] = detail::clampCell((r.o[a] + r.d[a] * out.tExit) * k_.invLeaf[a], lo[a], hi[a]);
       n[a] = ax == a ? (r.up[a] ? hi[a] + 1 : lo[a] - 1) : n[a];
     }
-    bool next = (ax >= 0) & (unsigned(n[0]) < unsigned(dim_[0])) & (unsigned(n[1]) < unsigned(dim_[1])) &
-                (unsigned(n[2]) < unsigned(dim_[2])) & (--r.stepsLeft > 0);
+    bool next = (ax >= 0) & (unsigned(n[0]) < unsigned(k_.dim[0])) & (unsigned(n[1]) < unsigned(k_.dim[1])) &
+                (unsigned(n[2]) < unsigned(k_.dim[2])) & (--r.stepsLeft > 0);
     out.next = next;
     if (next) {
       for (int a = 0; a < 3; ++a) r.L[a] = n[a];
       r.e = entry(n[0], n[1], n[2]);
-      __builtin_prefetch(ranges_ + r.e);
+      __builtin_prefetch(k_.ranges + r.e);
     }
     r.te = out.tExit;
     return out;
   }
   /// The primitive ids of the leaf at step-table entry `here` (a leaf's: TableStep::leaf).
-  MtLeafRange leafRange(uint32_t here) const { return ranges_[here]; }
-  const uint32_t* primitiveIds() const { return prims_; }
-
- private:
+  MtLeafRange leafRange(uint32_t here) const { return k_.ranges[here]; }
+  /// The step-table entry of bottom-level cell (x, y, z) (in range).
   MT_ALWAYS_INLINE uint32_t entry(int x, int y, int z) const {
-    return blocks_[(size_t(z >> 3) * py_ + size_t(y >> 3)) * px_ + size_t(x >> 3)] +
+    return k_.blocks[(uint32_t(z >> 3) << (k_.logPx + k_.logPy)) | (uint32_t(y >> 3) << k_.logPx) | uint32_t(x >> 3)] +
            ((uint32_t(z & 7) << 6) | (uint32_t(y & 7) << 3) | uint32_t(x & 7));
   }
-  const uint8_t* bytes_;
-  const uint32_t* blocks_;
-  const MtLeafRange* ranges_;
-  const uint32_t* prims_;
-  const std::array<int, 3>* shift_;
-  Box root_;
-  Vec3 invLeaf_, cs_;
-  size_t px_, py_;
-  int H_;
-  bool uniform_;
-  int dim_[3];
-  int maxSteps_;
+
+ private:
+  Tables k_;
 };
 
 template <class LeafFn>
