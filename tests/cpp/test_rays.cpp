@@ -240,7 +240,8 @@ TEST_P(RealMeshRays, BatchWalkIsTheSingleRayWalk) {
       for (int i = 0; i < n; ++i) {
         const auto walk = [&](auto testTag, double t1, bool any, RayHit& hit, uint32_t& visits, uint32_t& tests) {
           using Leaf = mtree::LeafTest<mtree::Simd::Scalar, decltype(testTag)::value>;
-          const mtree::LeafRay ray = mtree::LeafRay::forTest<decltype(testTag)::value>(o[i], d[i], tmin[i]);
+          mtree::LeafRay ray;
+          ray.set<decltype(testTag)::value>(o[i], d[i], tmin[i]);
           mtree::TraversalStats st;
           hit = RayHit{};
           hit.t = t1;

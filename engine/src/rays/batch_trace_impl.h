@@ -39,27 +39,78 @@ struct Avx2Walk {
     __m256d o, d, inv, never;
     __m128i L, up;
     double te, t1;
-    uint32_t e;
+    uint32_t e, p;
     int stepsLeft;
   };
-  MT_ALWAYS_INLINE void load(const TableRay& r, Ray& x) const {
-    x.o = _mm256_setr_pd(r.o[0], r.o[1], r.o[2], 0.0);
-    x.d = _mm256_setr_pd(r.d[0], r.d[1], r.d[2], 0.0);
-    x.inv = _mm256_setr_pd(r.inv[0], r.inv[1], r.inv[2], 0.0);
-    x.never = _mm256_setr_pd(r.never[0], r.never[1], r.never[2], std::numeric_limits<double>::infinity());
-    x.L = _mm_setr_epi32(r.L[0], r.L[1], r.L[2], 0);
-    x.up = _mm_setr_epi32(r.up[0] ? -1 : 0, r.up[1] ? -1 : 0, r.up[2] ? -1 : 0, 0);
-    x.te = r.te;
-    x.t1 = r.t1;
-    x.e = r.e;
-    x.stepsLeft = r.stepsLeft;
+  /// TableWalk::start (detail::RayClip, then the first cell) in lanes, with the same operations:
+  /// the reciprocals, which axes move, the slab test (per lane, then reduced over x, y, z in
+  /// RayClip's order with its std::min / std::max) and the first cell's clamp.
+  MT_ALWAYS_INLINE bool start(Vec3 o3, Vec3 d3, double tmin, double tmax, Ray& r) const {
+    const __m256d o = _mm256_setr_pd(o3.x, o3.y, o3.z, 0.0), d = _mm256_setr_pd(d3.x, d3.y, d3.z, 0.0);
+    const __m256d zero = _mm256_setzero_pd(), inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+    const __m256d absMask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+    const __m256d big = _mm256_set1_pd(std::numeric_limits<double>::max());
+    // Finite o and d (NaN fails the ordered compare), tmin <= tmax, d not zero.
+    const int finite = _mm256_movemask_pd(_mm256_and_pd(_mm256_cmp_pd(_mm256_and_pd(o, absMask), big, _CMP_LE_OQ),
+                                                        _mm256_cmp_pd(_mm256_and_pd(d, absMask), big, _CMP_LE_OQ)));
+    const __m256d dNonZero = _mm256_cmp_pd(d, zero, _CMP_NEQ_UQ);
+    if (finite != 0xF || !(tmin <= tmax) || (_mm256_movemask_pd(dNonZero) & 7) == 0) return false;
+    const __m256d q = _mm256_div_pd(_mm256_set1_pd(1.0), d);
+    const __m256d recip = _mm256_and_pd(q, dNonZero);  // d != 0 ? 1 / d : 0
+    const __m256d moves = _mm256_and_pd(_mm256_cmp_pd(_mm256_and_pd(recip, absMask), inf, _CMP_LT_OQ), dNonZero);
+    r.inv = _mm256_and_pd(recip, moves);
+    r.never = _mm256_andnot_pd(moves, inf);
+    // The 64-bit lanes' masks as 32-bit lanes (their low halves).
+    r.up = _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(_mm256_castpd_si256(_mm256_cmp_pd(d, zero, _CMP_GT_OQ)),
+                                                              _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7)));
+    const __m256d lo = _mm256_setr_pd(k.root.lo.x, k.root.lo.y, k.root.lo.z, 0.0);
+    const __m256d hi = _mm256_setr_pd(k.root.hi.x, k.root.hi.y, k.root.hi.z, 0.0);
+    const int mv = _mm256_movemask_pd(moves);
+    // An axis the ray does not move along: the origin must lie in the root's slab.
+    const int outside = _mm256_movemask_pd(_mm256_or_pd(_mm256_cmp_pd(o, lo, _CMP_LT_OQ), _mm256_cmp_pd(o, hi, _CMP_GT_OQ)));
+    if (outside & ~mv & 7) return false;
+    const __m256d tn = _mm256_mul_pd(_mm256_sub_pd(lo, o), r.inv), tf = _mm256_mul_pd(_mm256_sub_pd(hi, o), r.inv);
+    alignas(32) double near[4], far[4];
+    _mm256_store_pd(near, _mm256_min_pd(tf, tn));  // std::min(tn, tf)
+    _mm256_store_pd(far, _mm256_max_pd(tf, tn));   // std::max(tn, tf)
+    double t0 = tmin, t1 = tmax;
+    for (int a = 0; a < 3; ++a) {
+      if (!((mv >> a) & 1)) continue;
+      t0 = std::max(t0, near[a]);
+      t1 = std::min(t1, far[a]);
+    }
+    if (!(t0 <= t1)) return false;
+    r.o = _mm256_sub_pd(o, lo);
+    r.d = d;
+    r.te = t0;
+    r.t1 = t1;
+    // The first cell: cellIndexNonNegative((o + d t0) invLeaf, 0, dim - 1).
+    const __m256d pt = _mm256_mul_pd(_mm256_add_pd(r.o, _mm256_mul_pd(d, _mm256_set1_pd(t0))), invLeaf);
+    const __m256d c = _mm256_min_pd(_mm256_max_pd(pt, zero), _mm256_cvtepi32_pd(_mm_sub_epi32(dim, _mm_set1_epi32(1))));
+    r.L = _mm256_cvttpd_epi32(c);
+    place(r);
+    r.stepsLeft = k.maxSteps;
+    return true;
+  }
+  /// r.p and r.e of the cell r.L.
+  MT_ALWAYS_INLINE void place(Ray& r) const {
+    const uint32_t x = uint32_t(_mm_cvtsi128_si32(r.L)), y = uint32_t(_mm_extract_epi32(r.L, 1)),
+                   z = uint32_t(_mm_extract_epi32(r.L, 2));
+    r.p = ((z >> 3) << (k.logPx + k.logPy)) | ((y >> 3) << k.logPx) | (x >> 3);
+    r.e = k.blocks[r.p] + (((z & 7) << 6) | ((y & 7) << 3) | (x & 7));
   }
   MT_ALWAYS_INLINE TableStep step(Ray& r) const {
     const uint8_t v = k.bytes[r.e];
-    const __m128i m = _mm_loadu_si128(reinterpret_cast<const __m128i*>(k.mask[v & 0x7F].data()));
+    const int level = v & 0x7F;
+    const __m128i m = _mm_loadu_si128(reinterpret_cast<const __m128i*>(k.mask[level].data()));
     const __m128i ones = _mm_set1_epi32(-1);
-    const __m128i lo = _mm_and_si128(r.L, m);
-    const __m128i hi = _mm_or_si128(r.L, _mm_xor_si128(m, ones));
+    // The node, or in an absent block its empty box (bytes 0-2 low, 4-6 high corner, in blocks).
+    const __m128i box = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(k.boxes + r.p));
+    const __m128i inBox = _mm_set1_epi32(level <= k.boxLevel ? -1 : 0);
+    const __m128i boxLo = _mm_slli_epi32(_mm_cvtepu8_epi32(box), 3);
+    const __m128i boxHi = _mm_or_si128(_mm_slli_epi32(_mm_cvtepu8_epi32(_mm_srli_si128(box, 4)), 3), _mm_set1_epi32(7));
+    const __m128i lo = _mm_blendv_epi8(_mm_and_si128(r.L, m), boxLo, inBox);
+    const __m128i hi = _mm_blendv_epi8(_mm_or_si128(r.L, _mm_xor_si128(m, ones)), boxHi, inBox);
     const __m128i hi1 = _mm_sub_epi32(hi, ones), lo1 = _mm_add_epi32(lo, ones);  // hi + 1, lo - 1
     // planeCrossing: (edge * cs - o) * inv + never
     const __m256d edge = _mm256_cvtepi32_pd(_mm_blendv_epi8(lo, hi1, r.up));
@@ -88,12 +139,8 @@ struct Avx2Walk {
     out.next = !ends & (_mm_movemask_epi8(bad) == 0) & (--r.stepsLeft > 0);
     if (out.next) {
       r.L = n;
-      MatrixTree::TableWalk::Tables const& kk = k;
-      const uint32_t x = uint32_t(_mm_cvtsi128_si32(n)), y = uint32_t(_mm_extract_epi32(n, 1)),
-                     z = uint32_t(_mm_extract_epi32(n, 2));
-      r.e = kk.blocks[((z >> 3) << (kk.logPx + kk.logPy)) | ((y >> 3) << kk.logPx) | (x >> 3)] +
-            (((z & 7) << 6) | ((y & 7) << 3) | (x & 7));
-      __builtin_prefetch(kk.ranges + r.e);
+      place(r);
+      __builtin_prefetch(k.ranges + r.e);
     }
     r.te = out.tExit;
     return out;
@@ -106,7 +153,9 @@ struct ScalarWalk {
   const MatrixTree::TableWalk& w;
   explicit ScalarWalk(const MatrixTree::TableWalk& walk) : w(walk) {}
   using Ray = TableRay;
-  MT_ALWAYS_INLINE void load(const TableRay& r, Ray& x) const { x = r; }
+  MT_ALWAYS_INLINE bool start(Vec3 o, Vec3 d, double tmin, double tmax, Ray& r) const {
+    return w.start(o, d, tmin, tmax, r);
+  }
   MT_ALWAYS_INLINE TableStep step(Ray& r) const { return w.step(r); }
 };
 
@@ -157,12 +206,11 @@ void matrixBatch(const MatrixTree& tree, const LeafTriangles& P, const RayBatch&
     while (next < b.n) {
       const size_t i = next++;
       const double tmax = b.tMax(i);
-      TableRay r;
-      if (w.start(b.o[i], b.d[i], b.tMin(i), tmax, r)) {
-        walker.load(r, x.walk);
-        x.ray = LeafRay::forTest<T>(b.o[i], b.d[i], b.tMin(i));
-        x.hit = RayHit{};
+      if (walker.start(b.o[i], b.d[i], b.tMin(i), tmax, x.walk)) {
+        x.ray.template set<T>(b.o[i], b.d[i], b.tMin(i));
+        x.hit.prim = MT_NULL;
         x.hit.t = tmax;
+        x.hit.u = x.hit.v = 0;
         x.tmax = tmax;
         x.index = i;
         x.visits = x.tests = 0;
@@ -221,7 +269,8 @@ void matrixSingle(const MatrixTree& tree, const LeafTriangles& P, const RayBatch
   constexpr double kInf = std::numeric_limits<double>::infinity();
   for (size_t i = 0; i < b.n; ++i) {
     const double tmax = b.tMax(i);
-    const LeafRay ray = LeafRay::forTest<T>(b.o[i], b.d[i], b.tMin(i));
+    LeafRay ray;
+    ray.set<T>(b.o[i], b.d[i], b.tMin(i));
     TraversalStats st;
     uint64_t tests = 0;
     RayHit hit;
@@ -291,8 +340,8 @@ void sahBatch(const SahKdTree& tree, SahTraversal trav, int shortStack, const Le
   constexpr double kInf = std::numeric_limits<double>::infinity();
   for (size_t i = 0; i < b.n; ++i) {
     const double tmax = b.tMax(i);
-    SahPayloadVisitor<S, T, Any> vis{P, tree.primitiveIndices().data(), LeafRay::forTest<T>(b.o[i], b.d[i], b.tMin(i)),
-                                    RayHit{}, tmax};
+    SahPayloadVisitor<S, T, Any> vis{P, tree.primitiveIndices().data(), LeafRay{}, RayHit{}, tmax};
+    vis.ray.template set<T>(b.o[i], b.d[i], b.tMin(i));
     vis.hit.t = tmax;
     TraversalStats st;
     tree.walk(trav, b.o[i], b.d[i], b.tMin(i), tmax, vis, Count ? &st : nullptr, shortStack);

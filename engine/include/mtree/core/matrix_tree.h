@@ -141,8 +141,8 @@ class MatrixTree {
   /// word read from a small array that stays in cache. Levels below use the block-sparse bytes.
   int denseLevels() const { return denseLevels_; }
   size_t walkCacheBytes() const {
-    return (leafMask_.size() + levelBits_.size()) * sizeof(uint64_t) + blockEmpty_.size() + stepLevel_.size() +
-           stepBlock_.size() * sizeof(uint32_t);
+    return (leafMask_.size() + levelBits_.size() + stepBox_.size()) * sizeof(uint64_t) + blockEmpty_.size() +
+           stepLevel_.size() + stepBlock_.size() * sizeof(uint32_t);
   }
   /// Whether traverseRay() steps by the step table (see buildStepTable()): built with the other
   /// walk caches where nodeOf() is available and at least half the bottom-level cells of the
@@ -350,6 +350,13 @@ class MatrixTree {
   static constexpr uint8_t kStepLeaf = 0x80;
   std::vector<uint8_t> stepLevel_;
   std::vector<uint32_t> stepBlock_;
+  // Empty boxes (TableWalk): per leaf pointer-matrix cell whose block is absent, a box of absent
+  // blocks containing it, in block units: bytes 0-2 its low corner (x, y, z), bytes 4-6 its high
+  // corner (inclusive); the cell itself where the block exists. Grown from the largest empty node
+  // containing the block (buildStepBoxes()), so never smaller than that node.
+  std::vector<uint64_t> stepBox_;
+  /// Fills stepBox_ (buildStepTable() calls it).
+  void buildStepBoxes();
   // Per level, the bottom-level cells per node along each axis as a shift (logDims[H] -
   // logDims[l]), and ~(2^shift - 1): a bottom-level coordinate ANDed with it is the first
   // bottom-level cell of its node at that level (TableWalk::step).
@@ -653,6 +660,7 @@ struct TableRay {
   double te;     // where the ray enters the current cell
   int L[3];      // the current bottom-level cell
   uint32_t e;    // its entry in the step table
+  uint32_t p;    // its leaf pointer-matrix cell (its block's)
   int stepsLeft; // the walk's bound on steps (3 x the cells along the axes + 8): never reached by
                  // a walk that advances, which every walk does
 };
@@ -669,7 +677,9 @@ struct TableStep {
 
 /// The walk by the step table (buildStepTable()): one step reads the byte of the ray's
 /// bottom-level cell, which gives the leaf or the largest empty node containing it (nodeOf()'s
-/// answer), computes the node's exit face as the tree walk does (detail::planeCrossing,
+/// answer); where that node is an absent block's (or larger), the step crosses the block's empty
+/// box instead (stepBox_: a box of absent blocks grown from that node, which a ray crosses in one
+/// step where the octree would take several). It computes the region's exit face as the tree walk does (detail::planeCrossing,
 /// nearestExit: ((c + 1) << s) csH is (c + 1) cs_l exactly, the cell sizes being the root's
 /// extent times powers of two), and the next cell: an integer step on the exit axis, the other
 /// axes from the exit point clamped into the node (so round-off cannot skip a node). No branch
@@ -688,6 +698,8 @@ class MatrixTree::TableWalk {
     const uint32_t* blocks;
     const MtLeafRange* ranges;
     const std::array<int, 4>* mask;  // stepMask_: lane 3 is -1
+    const uint64_t* boxes;           // stepBox_
+    int boxLevel;                    // the block level: a node at it or above is an absent block's
     Box root;
     Vec3 invLeaf, cs;
     int dim[3];
@@ -700,6 +712,8 @@ class MatrixTree::TableWalk {
     k_.blocks = t.stepBlock_.data();
     k_.ranges = t.leaves_.data().data();
     k_.mask = t.stepMask_.data();
+    k_.boxes = t.stepBox_.data();
+    k_.boxLevel = t.height_ - t.blockLevels_;
     k_.root = t.root_;
     k_.invLeaf = t.invLeaf_;
     k_.cs = t.cellSize_[t.height_];
@@ -725,19 +739,25 @@ class MatrixTree::TableWalk {
     r.te = c.t0;
     for (int a = 0; a < 3; ++a)
       r.L[a] = cellIndexNonNegative((r.o[a] + r.d[a] * c.t0) * k_.invLeaf[a], 0, k_.dim[a] - 1);
-    r.e = entry(r.L[0], r.L[1], r.L[2]);
+    r.p = pointer(r.L[0], r.L[1], r.L[2]);
+    r.e = entry(r.p, r.L[0], r.L[1], r.L[2]);
     r.stepsLeft = k_.maxSteps;
     return true;
   }
   MT_ALWAYS_INLINE TableStep step(TableRay& r) const {
     const uint8_t v = k_.bytes[r.e];
-    // The node's bottom-level cells along each axis: L with its low bits cleared (lo) or set (hi).
-    const int* m = k_.mask[v & ~kStepLeaf].data();
+    const int level = v & ~kStepLeaf;
+    // The region the ray crosses, in bottom-level cells [lo, hi] per axis: the node, L with its
+    // low bits cleared (lo) or set (hi); in an absent block, the block's empty box.
+    const int* m = k_.mask[level].data();
+    const uint64_t box = k_.boxes[r.p];
+    const bool inBox = level <= k_.boxLevel;
     int lo[3], hi[3];
     double tx[3];
     for (int a = 0; a < 3; ++a) {
-      lo[a] = r.L[a] & m[a];
-      hi[a] = r.L[a] | ~m[a];
+      const int bl = int((box >> (8 * a)) & 0xFF) << 3, bh = (int((box >> (8 * a + 32)) & 0xFF) << 3) | 7;
+      lo[a] = inBox ? bl : r.L[a] & m[a];
+      hi[a] = inBox ? bh : r.L[a] | ~m[a];
       tx[a] = detail::planeCrossing(r.up[a] ? hi[a] + 1 : lo[a], k_.cs[a], r.o[a], r.inv[a], r.never[a]);
     }
     TableStep out;
@@ -758,7 +778,8 @@ class MatrixTree::TableWalk {
     out.next = next;
     if (next) {
       for (int a = 0; a < 3; ++a) r.L[a] = n[a];
-      r.e = entry(n[0], n[1], n[2]);
+      r.p = pointer(n[0], n[1], n[2]);
+      r.e = entry(r.p, n[0], n[1], n[2]);
       __builtin_prefetch(k_.ranges + r.e);
     }
     r.te = out.tExit;
@@ -766,10 +787,13 @@ class MatrixTree::TableWalk {
   }
   /// The primitive ids of the leaf at step-table entry `here` (a leaf's: TableStep::leaf).
   MtLeafRange leafRange(uint32_t here) const { return k_.ranges[here]; }
-  /// The step-table entry of bottom-level cell (x, y, z) (in range).
-  MT_ALWAYS_INLINE uint32_t entry(int x, int y, int z) const {
-    return k_.blocks[(uint32_t(z >> 3) << (k_.logPx + k_.logPy)) | (uint32_t(y >> 3) << k_.logPx) | uint32_t(x >> 3)] +
-           ((uint32_t(z & 7) << 6) | (uint32_t(y & 7) << 3) | uint32_t(x & 7));
+  /// The leaf pointer-matrix cell of bottom-level cell (x, y, z) (in range).
+  MT_ALWAYS_INLINE uint32_t pointer(int x, int y, int z) const {
+    return (uint32_t(z >> 3) << (k_.logPx + k_.logPy)) | (uint32_t(y >> 3) << k_.logPx) | uint32_t(x >> 3);
+  }
+  /// The step-table entry of bottom-level cell (x, y, z), p its pointer-matrix cell.
+  MT_ALWAYS_INLINE uint32_t entry(uint32_t p, int x, int y, int z) const {
+    return k_.blocks[p] + ((uint32_t(z & 7) << 6) | (uint32_t(y & 7) << 3) | uint32_t(x & 7));
   }
 
  private:

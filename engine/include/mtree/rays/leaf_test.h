@@ -61,32 +61,40 @@ struct LeafRay {
   double tmin = 0;
   int kx = 0, ky = 1, kz = 2;
   double sx = 0, sy = 0, sz = 0;
+  /// Sets the ray (the shear only for the watertight test).
   template <TriangleTest Test>
-  static MT_ALWAYS_INLINE LeafRay forTest(Vec3 o, Vec3 d, double tmin) {
-    LeafRay r;
-    r.o = o;
-    r.d = d;
-    r.tmin = tmin;
+  MT_ALWAYS_INLINE void set(Vec3 oo, Vec3 dd, double t0) {
+    o = oo;
+    d = dd;
+    tmin = t0;
     if constexpr (Test == TriangleTest::Watertight) {
       const double adx = std::fabs(d.x), ady = std::fabs(d.y), adz = std::fabs(d.z);
-      r.kz = 2;
+      kz = 2;
       if (adx > ady) {
-        if (adx > adz) r.kz = 0;
+        if (adx > adz) kz = 0;
       } else if (ady > adz) {
-        r.kz = 1;
+        kz = 1;
       }
-      r.kx = r.kz == 2 ? 0 : r.kz + 1;
-      r.ky = r.kx == 2 ? 0 : r.kx + 1;
-      if (d[r.kz] < 0) std::swap(r.kx, r.ky);
-      r.sx = d[r.kx] / d[r.kz];
-      r.sy = d[r.ky] / d[r.kz];
-      r.sz = 1.0 / d[r.kz];
+      kx = kz == 2 ? 0 : kz + 1;
+      ky = kx == 2 ? 0 : kx + 1;
+      if (d[kz] < 0) std::swap(kx, ky);
+      sx = d[kx] / d[kz];
+      sy = d[ky] / d[kz];
+      sz = 1.0 / d[kz];
     }
-    return r;
   }
 };
 
 namespace detail {
+
+/// W lanes of which the first n (clamped to [0, W]) are all-ones doubles and the rest zero: a
+/// window of a table of 8 all-ones then 8 zeros.
+MT_ALWAYS_INLINE const double* laneTable(int n, int W) {
+  alignas(64) static const uint64_t kTable[16] = {~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull,
+                                                  0, 0, 0, 0, 0, 0, 0, 0};
+  const int on = n < 0 ? 0 : (n > W ? W : n);
+  return reinterpret_cast<const double*>(kTable + 8 - on);
+}
 
 /// Lane operations of one SIMD width: V a vector of doubles, masks as vectors of all-ones lanes.
 #ifdef MT_LEAF_TEST_SSE2
@@ -110,6 +118,8 @@ struct Sse2Lanes {
   static MT_ALWAYS_INLINE V andnot(V a, V b) { return _mm_andnot_pd(a, b); }  // ~a & b
   static MT_ALWAYS_INLINE int mask(V a) { return _mm_movemask_pd(a); }
   static MT_ALWAYS_INLINE void store(double* p, V a) { _mm_storeu_pd(p, a); }
+  /// Lanes i < n on (all-ones), the others off; any n.
+  static MT_ALWAYS_INLINE V first(int n) { return _mm_loadu_pd(laneTable(n, W)); }
 };
 #endif
 #ifdef MT_LEAF_TEST_AVX2
@@ -134,14 +144,17 @@ struct Avx2Lanes {
   static MT_ALWAYS_INLINE V andnot(V a, V b) { return _mm256_andnot_pd(a, b); }
   static MT_ALWAYS_INLINE int mask(V a) { return _mm256_movemask_pd(a); }
   static MT_ALWAYS_INLINE void store(double* p, V a) { _mm256_storeu_pd(p, a); }
+  static MT_ALWAYS_INLINE V first(int n) { return _mm256_loadu_pd(laneTable(n, W)); }
 };
 #endif
 
 /// rayTriangleMT (geometry.h) in the lanes of X for references [k, k + X::W) of the payload:
-/// the mask of lanes hit with t in [tmin, tmax] (t, u, v stored for them), before any lane limit.
+/// the mask of the lanes on in `on` that are hit with t in [tmin, tmax] (t, u, v stored for
+/// them). The lanes off are dropped before the first early exit, so that a step with no
+/// triangle to test (no lane on) takes that exit every time.
 template <class X>
-MT_ALWAYS_INLINE int mollerTrumboreLanes(const LeafTriangles& P, size_t k, const LeafRay& r, double tmax, double* t,
-                                         double* u, double* v) {
+MT_ALWAYS_INLINE int mollerTrumboreLanes(const LeafTriangles& P, size_t k, const LeafRay& r, double tmax,
+                                         typename X::V on, double* t, double* u, double* v) {
   using V = typename X::V;
   const V ax = X::load(P.coord(0) + k), ay = X::load(P.coord(1) + k), az = X::load(P.coord(2) + k);
   const V e1x = X::sub(X::load(P.coord(3) + k), ax), e1y = X::sub(X::load(P.coord(4) + k), ay),
@@ -170,7 +183,7 @@ MT_ALWAYS_INLINE int mollerTrumboreLanes(const LeafTriangles& P, size_t k, const
   const V qy = X::sub(X::mul(sz, e1x), X::mul(sx, e1z));
   const V qz = X::sub(X::mul(sx, e1y), X::mul(sy, e1x));
   const V vn = X::mul(X::add(X::add(X::mul(dx, qx), X::mul(dy, qy)), X::mul(dz, qz)), sg);
-  ok = X::band(ok, X::band(X::ge(vn, zero), X::le(X::add(un, vn), adet)));
+  ok = X::band(X::band(ok, on), X::band(X::ge(vn, zero), X::le(X::add(un, vn), adet)));
   if (X::mask(ok) == 0) return 0;  // outside an edge in every lane: the common case
   const V inv = X::div(one, det);
   const V tt = X::mul(X::add(X::add(X::mul(e2x, qx), X::mul(e2y, qy)), X::mul(e2z, qz)), inv);
@@ -185,8 +198,8 @@ MT_ALWAYS_INLINE int mollerTrumboreLanes(const LeafTriangles& P, size_t k, const
 
 /// rayTriangleWatertight (intersect.h) in the lanes of X, with the ray's shear from LeafRay.
 template <class X>
-MT_ALWAYS_INLINE int watertightLanes(const LeafTriangles& P, size_t k, const LeafRay& r, double tmax, double* t,
-                                     double* u, double* v) {
+MT_ALWAYS_INLINE int watertightLanes(const LeafTriangles& P, size_t k, const LeafRay& r, double tmax,
+                                     typename X::V on, double* t, double* u, double* v) {
   using V = typename X::V;
   const V ox = X::set1(r.o[r.kx]), oy = X::set1(r.o[r.ky]), oz = X::set1(r.o[r.kz]);
   const V sx = X::set1(r.sx), sy = X::set1(r.sy);
@@ -209,7 +222,7 @@ MT_ALWAYS_INLINE int watertightLanes(const LeafTriangles& P, size_t k, const Lea
   const V absDet = X::andnot(X::set1(-0.0), det);
   // Not mixed signs, det != 0 and finite.
   V ok = X::andnot(X::band(anyNeg, anyPos),
-                   X::band(X::neq(det, zero), X::le(absDet, X::set1(std::numeric_limits<double>::max()))));
+                   X::band(X::band(X::neq(det, zero), X::le(absDet, X::set1(std::numeric_limits<double>::max()))), on));
   if (X::mask(ok) == 0) return 0;
   const V sz = X::set1(r.sz);
   const V T = X::add(X::add(X::mul(U, X::mul(sz, pz[0])), X::mul(Vv, X::mul(sz, pz[1]))), X::mul(Ww, X::mul(sz, pz[2])));
@@ -227,12 +240,12 @@ MT_ALWAYS_INLINE int watertightLanes(const LeafTriangles& P, size_t k, const Lea
 }
 
 template <class X, TriangleTest Test>
-MT_ALWAYS_INLINE int testLanes(const LeafTriangles& P, size_t k, const LeafRay& r, double tmax, double* t, double* u,
-                               double* v) {
+MT_ALWAYS_INLINE int testLanes(const LeafTriangles& P, size_t k, const LeafRay& r, double tmax, typename X::V on,
+                               double* t, double* u, double* v) {
   if constexpr (Test == TriangleTest::Watertight)
-    return watertightLanes<X>(P, k, r, tmax, t, u, v);
+    return watertightLanes<X>(P, k, r, tmax, on, t, u, v);
   else
-    return mollerTrumboreLanes<X>(P, k, r, tmax, t, u, v);
+    return mollerTrumboreLanes<X>(P, k, r, tmax, on, t, u, v);
 }
 
 /// The scalar test of reference k, on the payload's corners.
@@ -247,7 +260,9 @@ MT_ALWAYS_INLINE bool testOne(const LeafTriangles& P, size_t k, const LeafRay& r
 
 }  // namespace detail
 
-/// The leaf tests of one width (see the file comment).
+/// The leaf tests of one width (see the file comment), for count >= 1 (the SIMD widths test one
+/// step of lanes, all off, for count = 0). Lanes past the leaf's last triangle are off from the
+/// start, so the neighbouring leaf's triangles that fill them never cost a division.
 template <Simd S, TriangleTest Test>
 struct LeafTest {
   static MT_ALWAYS_INLINE void first(const LeafTriangles& P, const uint32_t* ids, uint32_t begin, uint32_t count,
@@ -259,16 +274,17 @@ struct LeafTest {
       }
     } else {
       using X = Lanes;
-      for (uint32_t j = 0; j < count; j += X::W) {
+      uint32_t j = 0;
+      do {
         alignas(32) double t[X::W], u[X::W], v[X::W];
-        int m = detail::testLanes<X, Test>(P, size_t(begin) + j, r, hit.t, t, u, v);
-        if (count - j < uint32_t(X::W)) m &= (1 << (count - j)) - 1;
+        int m = detail::testLanes<X, Test>(P, size_t(begin) + j, r, hit.t, X::first(int(count - j)), t, u, v);
         while (m) {
           const int lane = __builtin_ctz(unsigned(m));
           m &= m - 1;
           hit.offer(ids[begin + j + lane], t[lane], u[lane], v[lane]);
         }
-      }
+        j += X::W;
+      } while (j < count);
     }
   }
   static MT_ALWAYS_INLINE bool any(const LeafTriangles& P, uint32_t begin, uint32_t count, const LeafRay& r,
@@ -283,15 +299,16 @@ struct LeafTest {
       }
     } else {
       using X = Lanes;
-      for (uint32_t j = 0; j < count; j += X::W) {
+      uint32_t j = 0;
+      do {
         alignas(32) double t[X::W], u[X::W], v[X::W];
-        int m = detail::testLanes<X, Test>(P, size_t(begin) + j, r, tmax, t, u, v);
-        if (count - j < uint32_t(X::W)) m &= (1 << (count - j)) - 1;
+        const int m = detail::testLanes<X, Test>(P, size_t(begin) + j, r, tmax, X::first(int(count - j)), t, u, v);
         if (m) {
           tested = j + uint32_t(__builtin_ctz(unsigned(m))) + 1;
           return true;
         }
-      }
+        j += X::W;
+      } while (j < count);
     }
     tested = count;
     return false;
