@@ -53,6 +53,10 @@
 #include "mtree/rays/render.h"
 #include "mtree/rays/sah_kdtree.h"
 
+#ifdef MT_HAVE_EMBREE
+#include <embree3/rtcore.h>
+#endif
+
 namespace {
 
 using namespace mtree;
@@ -137,7 +141,8 @@ struct Row {
   std::vector<double> uploadMs, traceMs;                      // opencl rows
   uint64_t cpuMismatches = 0, cpuChecked = 0, shadeMismatches = 0;  // opencl rows vs the CPU render
   std::string name() const {
-    return method + "-" + traversal + "-" + test + (payload ? "" : "-mesh") + (backend == "cpu" ? "" : "-" + backend);
+    return method + "-" + traversal + "-" + test + (payload || method == "embree3" ? "" : "-mesh") +
+           (backend == "cpu" ? "" : "-" + backend);
   }
 };
 
@@ -169,7 +174,9 @@ std::vector<Sample> referenceHits(const TriangleMesh& mesh, const Camera& cam, i
   return out;
 }
 
-uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& samples) {
+// relTol: 1e-6 for the double-precision tracers (the depth is stored as a float), 1e-5 for Embree's
+// float rays.
+uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& samples, double relTol) {
   uint64_t bad = 0;
   for (const auto& s : samples) {
     const uint32_t got = r.hitPrim[size_t(s.pixel)];
@@ -180,7 +187,7 @@ uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& sampl
       continue;
     }
     const double t = r.depth[size_t(s.pixel)];  // float: compare at float precision
-    if (std::fabs(t - s.ref.t) > 1e-6 * std::max(1.0, std::fabs(s.ref.t))) ++bad;
+    if (std::fabs(t - s.ref.t) > relTol * std::max(1.0, std::fabs(s.ref.t))) ++bad;
   }
   return bad;
 }
@@ -214,6 +221,112 @@ std::string jsonNumbers(const std::vector<double>& v) {
   return o.str();
 }
 
+#ifdef MT_HAVE_EMBREE
+// Embree 3 (float BVH) as render()'s tracer: the outside reference on the same rays, with the same
+// shading and shadow rays. Three builds per frame:
+//   default  a new static scene per frame, RTC_BUILD_QUALITY_MEDIUM (Embree's default);
+//   low      one scene with RTC_SCENE_FLAG_DYNAMIC and RTC_BUILD_QUALITY_LOW, its vertex buffer
+//            rewritten and recommitted each frame (Embree's fastest full rebuild);
+//   refit    the same dynamic scene with the geometry's RTC_BUILD_QUALITY_REFIT: each frame after
+//            the first refits the first frame's BVH to the moved vertices (same triangles).
+struct EmbreeScene {
+  enum Mode { Default = 0, Low = 1, Refit = 2 };
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  RTCGeometry geom = nullptr;
+  float* verts = nullptr;
+  Mode mode = Default;
+  EmbreeScene(int threads, Mode m) : mode(m) {
+    const std::string cfg = "threads=" + std::to_string(threads) + ",set_affinity=0";
+    device = rtcNewDevice(cfg.c_str());
+    if (!device) throw std::runtime_error("rtcNewDevice failed");
+  }
+  ~EmbreeScene() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+  static const char* name(Mode m) { return m == Default ? "bvh-default" : (m == Low ? "bvh-low" : "bvh-refit"); }
+  // The frame's BVH (timed by the caller): the vertices converted to float and the scene committed.
+  void build(const Scene& sc, const std::vector<double>& pts) {
+    const bool fresh = !scene || mode == Default;
+    if (fresh) {
+      if (scene) rtcReleaseScene(scene);
+      scene = rtcNewScene(device);
+      if (mode != Default) {
+        rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC);
+        rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
+      }
+      geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      if (mode == Refit) rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_REFIT);
+      else if (mode == Low) rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_LOW);
+      verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), sc.nv));
+      unsigned* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                     3 * sizeof(unsigned), sc.nt));
+      std::copy(sc.tris.begin(), sc.tris.end(), idx);
+    }
+    for (size_t i = 0; i < pts.size(); ++i) verts[i] = static_cast<float>(pts[i]);
+    if (!fresh) rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(geom);
+    if (fresh) {
+      rtcAttachGeometry(scene, geom);
+      rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(scene);
+  }
+};
+
+struct EmbreeTracer {
+  RTCScene scene;
+  static float toFloat(double t) { return std::isinf(t) ? std::numeric_limits<float>::infinity() : static_cast<float>(t); }
+  bool first(Vec3 o, Vec3 d, double tmin, double tmax, RayHit& h, TraversalStats*) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    rh.ray.org_x = float(o.x);
+    rh.ray.org_y = float(o.y);
+    rh.ray.org_z = float(o.z);
+    rh.ray.dir_x = float(d.x);
+    rh.ray.dir_y = float(d.y);
+    rh.ray.dir_z = float(d.z);
+    rh.ray.tnear = toFloat(tmin);
+    rh.ray.tfar = toFloat(tmax);
+    rh.ray.time = 0;
+    rh.ray.mask = ~0u;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &ctx, &rh);
+    h = RayHit{};
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    h.t = rh.ray.tfar;
+    h.prim = rh.hit.primID;
+    h.u = rh.hit.u;
+    h.v = rh.hit.v;
+    return true;
+  }
+  bool any(Vec3 o, Vec3 d, double tmin, double tmax, TraversalStats*) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRay ray;
+    ray.org_x = float(o.x);
+    ray.org_y = float(o.y);
+    ray.org_z = float(o.z);
+    ray.dir_x = float(d.x);
+    ray.dir_y = float(d.y);
+    ray.dir_z = float(d.z);
+    ray.tnear = toFloat(tmin);
+    ray.tfar = toFloat(tmax);
+    ray.time = 0;
+    ray.mask = ~0u;
+    ray.id = 0;
+    ray.flags = 0;
+    rtcOccluded1(scene, &ctx, &ray);
+    return ray.tfar < 0;  // Embree marks an occluded ray with tfar = -inf
+  }
+};
+#endif
+
 // The primary rays of `cam` that enter `box` and hit nothing in `r` (a render of the frame): the
 // in-box misses, which every tree must walk to the end.
 void inBoxMisses(const Camera& cam, const Box& box, const RenderResult& r, std::vector<Vec3>& dirs) {
@@ -231,15 +344,16 @@ int run(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr,
                  "usage: rays_bench SCENE.bin OUT.json [--threads T] [--repeat R] [--tests mt,watertight]\n"
-                 "       [--methods octree,kdtree,sah-restart,sah-stack,sah-shortstack] [--short-stack K]\n"
-                 "       [--samples S] [--heatmaps DIR] [--backend cpu|opencl|all] [--device SEL]\n"
-                 "       [--leaves payload|mesh|both] [--in-flight K] [--simd scalar|sse2|avx2]\n");
+                 "       [--methods octree,kdtree,sah-restart,sah-stack,sah-shortstack,embree-default,embree-low,\n"
+                 "        embree-refit] [--short-stack K] [--samples S] [--heatmaps DIR] [--backend cpu|opencl|all]\n"
+                 "       [--device SEL] [--leaves payload|mesh|both] [--in-flight K] [--simd scalar|sse2|avx2]\n");
     return 2;
   }
   const std::string scenePath = argv[1], outPath = argv[2];
   int threads = 0, repeat = 1, samples = 2000, shortStack = 3, octHeight = 0, kdHeight = 0;
   double leafScale = BuildOptions{}.leafScale, maxCandidates = BuildOptions{}.maxCandidates;
-  std::string testsArg = "mt,watertight", methodsArg = "octree,kdtree,sah-restart,sah-stack,sah-shortstack";
+  std::string testsArg = "mt,watertight",
+              methodsArg = "octree,kdtree,sah-restart,sah-stack,sah-shortstack,embree-default,embree-low,embree-refit";
   std::string heatDir, backend = "cpu", deviceSel, leavesArg = "payload";
   TraceTuning tuning;
   tuning.simd = simdSupported();
@@ -319,6 +433,13 @@ int run(int argc, char** argv) {
   if (has(methodsArg, "sah-restart")) sahTravs.push_back(SahTraversal::Restart);
   if (has(methodsArg, "sah-stack")) sahTravs.push_back(SahTraversal::Stack);
   if (has(methodsArg, "sah-shortstack")) sahTravs.push_back(SahTraversal::ShortStack);
+#ifdef MT_HAVE_EMBREE
+  std::vector<std::unique_ptr<EmbreeScene>> embree;
+  if (useCpu)
+    for (auto m : {EmbreeScene::Default, EmbreeScene::Low, EmbreeScene::Refit})
+      if (has(methodsArg, std::string("embree-") + (m == EmbreeScene::Default ? "default" : m == EmbreeScene::Low ? "low" : "refit")))
+        embree.push_back(std::make_unique<EmbreeScene>(threads, m));
+#endif
 
   // Rows in output order.
   std::vector<Row> rows;
@@ -344,6 +465,9 @@ int run(int argc, char** argv) {
     for (auto tr : sahTravs)
       for (auto t : tests)
         for (bool pl : leafModes) rowFor("sah", sahTraversalName(tr), t, pl);
+#ifdef MT_HAVE_EMBREE
+    for (const auto& e : embree) rowFor("embree3", EmbreeScene::name(e->mode), TriangleTest::MollerTrumbore, false).test = "embree-float";
+#endif
   }
   if (useCl)
     for (const auto& m : mtMethods) rowFor(m.name, "matrix", TriangleTest::MollerTrumbore, false, "opencl");
@@ -384,7 +508,7 @@ int run(int argc, char** argv) {
       row.nodeVisits += double(counted.stats.nodeVisits);
       row.triTests += double(counted.stats.primTests);
       if (check) {
-        row.mismatches += countMismatches(timed, ref);
+        row.mismatches += countMismatches(timed, ref, row.method == "embree3" ? 1e-5 : 1e-6);
         row.checked += ref.size();
       }
       if (fi == 0 && !heatDir.empty() && row.backend == "cpu") {
@@ -571,6 +695,24 @@ int run(int argc, char** argv) {
         }
       }
     }
+#ifdef MT_HAVE_EMBREE
+    for (const auto& e : embree) {
+      Row* row = nullptr;
+      for (auto& r : rows)
+        if (r.method == "embree3" && r.traversal == EmbreeScene::name(e->mode)) row = &r;
+      // The refit build needs the first frame's BVH: `repeat` builds refit it to the same points.
+      std::vector<double> bt, bc;
+      for (int k = 0; k < repeat; ++k) {
+        const double c0 = cpuMs();
+        const auto t0 = Clock::now();
+        e->build(sc, sc.frames[fi]);
+        bt.push_back(msSince(t0));
+        bc.push_back(cpuMs() - c0);
+      }
+      measure(*row, EmbreeTracer{e->scene}, median(bt), median(bc));
+      row->payloadMs.push_back(0);
+    }
+#endif
     std::fprintf(stderr, "\rrays_bench: frame %u/%u", fi + 1, sc.nf);
   }
   std::fprintf(stderr, "\n");
@@ -590,7 +732,8 @@ int run(int argc, char** argv) {
     for (double x : r.payloadMs) pms += x;
     const double nf = double(std::max<size_t>(1, r.renderMs.size()));
     out << "    {\"method\": \"" << r.method << "\", \"traversal\": \"" << r.traversal << "\", \"test\": \""
-        << r.test << "\", \"leaves\": \"" << (r.payload ? "payload" : "mesh") << "\", \"build_ms\": " << b / nf
+        << r.test << "\", \"leaves\": \"" << (r.method == "embree3" ? "embree" : r.payload ? "payload" : "mesh")
+        << "\", \"build_ms\": " << b / nf
         << ", \"build_cpu_ms\": " << bcpu / nf << ", \"payload_cpu_ms\": " << pms / nf
         << ", \"render_ms\": " << m / nf << ", \"render_cpu_ms\": " << mc / nf
         << ", \"rays\": " << r.rays / nf << ", \"primary_rays\": " << r.primary / nf
