@@ -645,7 +645,9 @@ int run(int argc, char** argv) {
           crt.push_back(r.ms);
           ctt.push_back(tms);
         }
-        account(row, r, r, median(cbt), median(crt), median(cct), median(cbc));
+        double untimed = 0;
+        const RenderResult counted = renderOpenCL(*clTracer, mesh, box, sc.cam, countOpt, &untimed);
+        account(row, r, counted, median(cbt), median(crt), median(cct), median(cbc));
         row.uploadMs.push_back(median(cut));
         row.traceMs.push_back(median(ctt));
         row.bytes = clTree.bytes();
