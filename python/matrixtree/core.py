@@ -174,8 +174,8 @@ class MatrixTree:
         return self
 
     def stats(self) -> dict:
-        """Build statistics: height, triangles, leaves, references, bytes, per-level bytes,
-        blocks and node counts, the root box, per-phase build times (ms) and the total (ms)."""
+        """Build statistics: height, triangles, leaves, references, bytes (the tree with its leaf
+        triangles), the leaf triangles' bytes alone, per-level bytes, blocks and node counts, the root box, per-phase build times (ms) and the total (ms)."""
         t = self._tree
         h = t.GetTreeHeight()
         root = [0.0] * 6
@@ -187,6 +187,7 @@ class MatrixTree:
             "leaves": t.GetNumberOfLeaves(),
             "references": t.GetNumberOfReferences(),
             "bytes": t.GetMemorySize(),
+            "leaf_triangle_bytes": t.GetLeafTrianglesMemorySize(),
             "level_bytes": [t.GetLevelMemorySize(l) for l in range(h + 1)],
             "level_blocks": [t.GetLevelNumberOfBlocks(l) for l in range(h + 1)],
             "leaf_dims": [t.GetLevelDimension(h, a) for a in range(3)],

@@ -87,13 +87,16 @@ struct LeafRay {
 
 namespace detail {
 
+/// 8 all-ones lanes then 8 zero lanes. Namespace-scope constexpr: internal linkage, so every unit
+/// (the AVX2 one included) has its own copy and shares no symbol with the others.
+alignas(64) constexpr uint64_t kLaneTable[16] = {~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull,
+                                                 0, 0, 0, 0, 0, 0, 0, 0};
+
 /// W lanes of which the first n (clamped to [0, W]) are all-ones doubles and the rest zero: a
-/// window of a table of 8 all-ones then 8 zeros.
+/// window of kLaneTable.
 MT_ALWAYS_INLINE const double* laneTable(int n, int W) {
-  alignas(64) static const uint64_t kTable[16] = {~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull, ~0ull,
-                                                  0, 0, 0, 0, 0, 0, 0, 0};
   const int on = n < 0 ? 0 : (n > W ? W : n);
-  return reinterpret_cast<const double*>(kTable + 8 - on);
+  return reinterpret_cast<const double*>(kLaneTable + 8 - on);
 }
 
 /// Lane operations of one SIMD width: V a vector of doubles, masks as vectors of all-ones lanes.
