@@ -4,8 +4,14 @@ Every tree/traversal pair renders the same frames through one C++ renderer (buil
 pinhole camera, primary rays plus one shadow ray per hit towards a point light, Lambert shading,
 OpenMP over image rows): matrix octree and regular kd-tree (matrix traversal), and the SAH kd-tree
 with KD-Restart, a full stack and a short stack; each with the Moller-Trumbore and the watertight
-ray/triangle test. Dynamic scenes rebuild every tree every frame. Embree (the ``embreex`` package)
-traces the same primary rays and the same kind of shadow rays as the outside reference.
+ray/triangle test, and with the same leaf tests on the same pre-gathered leaf triangles
+(``--leaves payload``; ``mesh``: through the ids to the mesh; ``both``: rows for each). The timed
+renders run without counters; node visits and triangle tests come from one more, counted render.
+Dynamic scenes rebuild every tree (and its leaf triangles) every frame. Embree is the outside
+reference: Embree 3 from C++ through the same renderer when rays_bench was built with Debian's
+libembree-dev (its default build, its fastest rebuild ``low``: RTC_SCENE_FLAG_DYNAMIC with
+RTC_BUILD_QUALITY_LOW, and for animations ``refit``), and Embree 4 (the ``embreex`` package),
+Python-driven, on the same primary rays and the same kind of shadow rays.
 
     .venv/bin/python bench/rays.py                         # every default scene
     .venv/bin/python bench/rays.py --scene ../shared/data/meshes/bunny.ply --json out/bunny.json
@@ -62,9 +68,10 @@ VIEWS = {
 DEFAULT_SCENES = ["utah_hand", "utah_ben", "bunny", "lucy", "turbineblade", "nefertiti", "horse",
                   "horse_animated", "ben_deformed"]
 
-COLS = ["scene", "triangles", "frames", "method", "traversal", "test", "backend", "device", "build_ms", "render_ms",
-        "build_cpu_ms", "render_cpu_ms", "mrays_per_s", "node_visits_per_ray", "tri_tests_per_ray", "speedup_vs_sah_stack",
-        "frame_speedup_vs_sah_stack", "mismatches_vs_brute_force", "mismatches_vs_cpu"]
+COLS = ["scene", "triangles", "frames", "method", "traversal", "test", "leaves", "backend", "device", "build_ms",
+        "render_ms", "build_cpu_ms", "render_cpu_ms", "mrays_per_s", "node_visits_per_ray", "tri_tests_per_ray",
+        "ns_per_visit", "miss_ns_per_ray", "tree_mb", "leaf_mb", "speedup_vs_sah_stack", "frame_speedup_vs_sah_stack",
+        "mismatches_vs_brute_force", "mismatches_vs_cpu"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -375,42 +382,76 @@ def write_heatmaps(name: str, cam: dict, raw_dir: str, out_dir: str, rows: list)
 
 
 SUMMARY_COLS = ["scene", "triangles", "frames", "octree_render_x", "kdtree_render_x", "shortstack_render_x",
-                "restart_render_x", "embree_render_x", "octree_frame_x", "kdtree_frame_x", "embree_frame_x",
-                "visits_octree", "visits_sah", "tests_octree", "tests_sah", "mismatches"]
+                "restart_render_x", "octree_mesh_render_x", "embree_render_x", "embree_low_render_x",
+                "octree_frame_x", "octree_frame_vs_embree", "octree_frame_vs_embree_low", "octree_frame_vs_embree_refit",
+                "octree_frame_vs_embreex", "visits_octree", "visits_sah", "tests_octree", "tests_sah",
+                "ns_step_octree", "ns_visit_sah", "miss_ns_octree", "miss_ns_sah", "octree_mb", "sah_mb", "mismatches"]
 
 
-def summary_rows(rows: list) -> list:
+def summary_rows(rows: list, clock: str = "cpu") -> list:
     """One row per scene: speed-ups over the SAH kd-tree with a stack (Moller-Trumbore rows, CPU
-    back end), render only (_render_x) and build + render per frame (_frame_x), and the work per
-    ray of the matrix octree and the SAH tree."""
+    back end, both on the leaf triangles; octree_mesh_render_x: both without them), render only
+    (_render_x) and build + render per frame (_frame_x); the matrix octree's frame against
+    Embree's (Embree 3 from C++: its default build, its low-quality dynamic rebuild, its refit;
+    embreex: Embree 4 driven from Python), > 1 where the octree is faster; the work per ray of
+    the octree and the SAH tree, the time per node visit (the render time over the visits), the
+    in-box misses alone (ns per ray), and memory (tree + leaf triangles, MB)."""
     out = []
     scenes_seen = []
     for r in rows:
         if r["scene"] not in scenes_seen:
             scenes_seen.append(r["scene"])
+    bk, rk = ("build_cpu_ms", "render_cpu_ms") if clock == "cpu" else ("build_ms", "render_ms")
     for sc in scenes_seen:
         rs = [r for r in rows if r["scene"] == sc and r.get("backend", "cpu") == "cpu"
               and r["test"] in ("mt", "embree-float")]
         if not rs:  # --backend opencl: no CPU rows to summarise
             continue
 
-        def get(m, t, k):
-            v = [r.get(k) for r in rs if r["method"] == m and r["traversal"] == t]
-            return round(v[0], 2) if v and v[0] is not None else None
+        def row(m, t, leaves="payload"):
+            v = [r for r in rs if r["method"] == m and r["traversal"] == t
+                 and r.get("leaves", leaves) in (leaves, "embree")]
+            return v[0] if v else None
+
+        def get(m, t, k, leaves="payload"):
+            r = row(m, t, leaves)
+            return round(r[k], 2) if r and r.get(k) is not None else None
+
+        def frame(r):
+            return r[bk] + r[rk] if r else None
+
+        oc = row("matrix-octree", "matrix")
+        sah = row("sah", "stack")
+
+        def vs(m, t):  # the octree's frame against another method's: > 1 = octree faster
+            other = row(m, t)
+            return round(frame(other) / frame(oc), 2) if other and oc else None
+
+        def mb(r):
+            return round((r.get("bytes", 0) + r.get("payload_bytes", 0)) / 1e6, 1) if r else None
 
         out.append({"scene": sc, "triangles": rs[0]["triangles"], "frames": rs[0]["frames"],
                     "octree_render_x": get("matrix-octree", "matrix", "speedup_vs_sah_stack"),
                     "kdtree_render_x": get("matrix-kdtree", "matrix", "speedup_vs_sah_stack"),
                     "shortstack_render_x": get("sah", "shortstack", "speedup_vs_sah_stack"),
                     "restart_render_x": get("sah", "restart", "speedup_vs_sah_stack"),
-                    "embree_render_x": get("embree", "bvh", "speedup_vs_sah_stack"),
+                    "octree_mesh_render_x": get("matrix-octree", "matrix", "speedup_vs_sah_stack", "mesh"),
+                    "embree_render_x": get("embree3", "bvh-default", "speedup_vs_sah_stack"),
+                    "embree_low_render_x": get("embree3", "bvh-low", "speedup_vs_sah_stack"),
                     "octree_frame_x": get("matrix-octree", "matrix", "frame_speedup_vs_sah_stack"),
-                    "kdtree_frame_x": get("matrix-kdtree", "matrix", "frame_speedup_vs_sah_stack"),
-                    "embree_frame_x": get("embree", "bvh", "frame_speedup_vs_sah_stack"),
+                    "octree_frame_vs_embree": vs("embree3", "bvh-default"),
+                    "octree_frame_vs_embree_low": vs("embree3", "bvh-low"),
+                    "octree_frame_vs_embree_refit": vs("embree3", "bvh-refit"),
+                    "octree_frame_vs_embreex": vs("embree", "bvh"),
                     "visits_octree": get("matrix-octree", "matrix", "node_visits_per_ray"),
                     "visits_sah": get("sah", "stack", "node_visits_per_ray"),
                     "tests_octree": get("matrix-octree", "matrix", "tri_tests_per_ray"),
                     "tests_sah": get("sah", "stack", "tri_tests_per_ray"),
+                    "ns_step_octree": get("matrix-octree", "matrix", "ns_per_visit"),
+                    "ns_visit_sah": get("sah", "stack", "ns_per_visit"),
+                    "miss_ns_octree": get("matrix-octree", "matrix", "miss_ns_per_ray"),
+                    "miss_ns_sah": get("sah", "stack", "miss_ns_per_ray"),
+                    "octree_mb": mb(oc), "sah_mb": mb(sah),
                     "mismatches": sum(int(r.get("mismatches_vs_brute_force") or 0) for r in rows
                                       if r["scene"] == sc)})
     return out
@@ -428,7 +469,9 @@ def write_chart(rows: list, path: str) -> str:
             sc.append(r["scene"])
     series = [("matrix-octree", "matrix", "matrix octree"), ("matrix-kdtree", "matrix", "matrix kd-tree"),
               ("sah", "shortstack", "SAH short stack"), ("sah", "restart", "SAH KD-Restart"),
-              ("embree", "bvh", "Embree (float BVH)")]
+              ("embree3", "bvh-default", "Embree 3, default build (C++)"),
+              ("embree3", "bvh-low", "Embree 3, low-quality dynamic build (C++)"),
+              ("embree", "bvh", "Embree 4 (embreex, Python-driven)")]
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
     x = np.arange(len(sc))
     w = 0.8 / len(series)
@@ -439,7 +482,8 @@ def write_chart(rows: list, path: str) -> str:
             vals = []
             for s in sc:
                 v = [r.get(key) for r in rows if r["scene"] == s and r["method"] == m and r["traversal"] == tr
-                     and r["test"] in ("mt", "embree-float")]
+                     and r["test"] in ("mt", "embree-float") and r.get("leaves", "payload") in ("payload", "embree")
+                     and r.get("backend", "cpu") == "cpu"]
                 vals.append(v[0] if v and v[0] is not None else 0)
             ax.bar(x + (j - len(series) / 2 + 0.5) * w, vals, w, label=lab)
         ax.axhline(1.0, color="k", lw=0.8)
@@ -448,8 +492,9 @@ def write_chart(rows: list, path: str) -> str:
         ax.set_xticklabels(sc, rotation=30, ha="right")
         ax.set_title(title)
         ax.set_ylabel("x faster than SAH kd-tree with a stack")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -467,10 +512,17 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
         raw = os.path.join(tmp, "raw")
         os.makedirs(raw)
         repeat = args.repeat if args.repeat else (3 if len(frames) == 1 else 1)
+        methods = args.methods
+        if len(frames) == 1:  # a refit needs a previous frame's BVH
+            methods = ",".join(m for m in methods.split(",") if m != "embree-refit")
         cmd = [BIN, scene_bin, out_json, "--threads", str(args.threads), "--repeat", str(repeat),
-               "--tests", args.tests, "--methods", args.methods, "--samples", str(args.samples),
+               "--tests", args.tests, "--methods", methods, "--samples", str(args.samples),
                "--short-stack", str(args.short_stack), "--backend", args.backend,
-               "--leaf-scale", str(args.leaf_scale)]
+               "--leaf-scale", str(args.leaf_scale), "--leaves", args.leaves]
+        if args.in_flight:
+            cmd += ["--in-flight", str(args.in_flight)]
+        if args.simd:
+            cmd += ["--simd", args.simd]
         if args.device:
             cmd += ["--device", args.device]
         if args.octree_height:
@@ -493,14 +545,19 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
             r.update(scene=name, triangles=int(tris.shape[0]), frames=len(frames), image_width=cam["width"],
                      image_height=cam["height"], threads=res["threads"])
             r["mrays_per_s"] = r["rays"] / r["render_ms"] / 1e3 if r["render_ms"] else None
-        ref = {r["test"]: r for r in rows if r["method"] == "sah" and r["traversal"] == "stack"
+            if "bytes" in r:
+                r["tree_mb"] = r["bytes"] / 1e6
+                r["leaf_mb"] = r.get("payload_bytes", 0) / 1e6
+        # The baseline of a row: the SAH stack with the same test and the same leaves (payload or
+        # mesh); Embree's rows against the SAH stack's Moller-Trumbore payload row.
+        ref = {(r["test"], r.get("leaves")): r for r in rows if r["method"] == "sah" and r["traversal"] == "stack"
                and r.get("backend", "cpu") == "cpu"}
-        ref_any = ref.get("mt") or next(iter(ref.values()), None)
+        ref_any = ref.get(("mt", "payload")) or ref.get(("mt", "mesh")) or next(iter(ref.values()), None)
         # Ratios from wall-clock times, or (--clock cpu) from CPU times: with --threads 1 on a
         # machine other processes share, CPU time leaves out the time the process waited.
         bk, rk = ("build_cpu_ms", "render_cpu_ms") if args.clock == "cpu" else ("build_ms", "render_ms")
         for r in rows:
-            base = ref.get(r["test"], ref_any)
+            base = ref.get((r["test"], r.get("leaves")), ref_any)
             if base and r.get(rk) and r.get(bk) is not None:
                 r["speedup_vs_sah_stack"] = base[rk] / r[rk]
                 r["frame_speedup_vs_sah_stack"] = (base[bk] + base[rk]) / (r[bk] + r[rk])
@@ -524,7 +581,16 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=0,
                     help="renders per frame, median kept (default 3 for one frame, 1 for sequences)")
     ap.add_argument("--tests", default="mt,watertight", help="ray/triangle tests: mt, watertight or both")
-    ap.add_argument("--methods", default="octree,kdtree,sah-restart,sah-stack,sah-shortstack")
+    ap.add_argument("--methods",
+                    default="octree,kdtree,sah-restart,sah-stack,sah-shortstack,embree-default,embree-low,embree-refit",
+                    help="rays_bench's methods (embree-*: Embree 3 from C++, where rays_bench has it)")
+    ap.add_argument("--leaves", choices=("payload", "mesh", "both"), default="payload",
+                    help="leaf tests on the pre-gathered leaf triangles (default), through the ids to the mesh, "
+                         "or rows for both (the speed/memory trade; every tree gets the same treatment)")
+    ap.add_argument("--in-flight", type=int, default=0,
+                    help="rays the matrix walk keeps in flight per core (default: the engine's)")
+    ap.add_argument("--simd", choices=("scalar", "sse2", "avx2"), default="",
+                    help="the widest leaf test allowed (default: the widest this CPU runs)")
     ap.add_argument("--short-stack", type=int, default=3, help="short-stack entries (default 3)")
     ap.add_argument("--samples", type=int, default=2000,
                     help="pixels of the first and last frame checked against the brute force")
@@ -570,7 +636,7 @@ def main(argv=None) -> int:
         json.dump(payload, f, indent=1)
     shown = [dict(r, **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()}) for r in rows]
     print(table(shown, COLS))
-    summ = summary_rows(rows)
+    summ = summary_rows(rows, args.clock)
     if summ:  # none with --backend opencl (no CPU rows)
         print("\nSpeed-ups over the SAH kd-tree with a stack (x, > 1 = faster), Moller-Trumbore rows, "
               f"{args.clock} clock:")

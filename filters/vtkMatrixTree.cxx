@@ -13,7 +13,9 @@
 
 #include "mtree/device/opencl.h"
 #include "mtree/rays/raycast.h"
+#include "mtree/rays/render.h"
 
+#include <algorithm>
 #include <chrono>
 #include <memory>
 #include <string>
@@ -106,6 +108,18 @@ bool vtkMatrixTree::Build()
     {
       mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(in.Mesh, opt, in.Tree, &in.Stats);
     }
+    // The leaf triangles are part of the build: timed with it (a "leaf triangles" phase).
+    in.Payload.clear();
+    if (this->LeafTriangles && this->Backend != OPENCL)
+    {
+      const auto p0 = std::chrono::steady_clock::now();
+      in.Payload.build(
+        in.Tree.primitiveIndices().data(), in.Tree.primitiveIndices().size(), in.Mesh, this->NumberOfThreads);
+      const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - p0).count();
+      in.Stats.phasesMs.emplace_back("leaf triangles", ms);
+      in.Stats.totalMs += ms;
+    }
   }
   catch (const std::exception& e)
   {
@@ -154,7 +168,13 @@ vtkIdType vtkMatrixTree::GetNumberOfReferences() const
 }
 vtkIdType vtkMatrixTree::GetMemorySize() const
 {
-  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Tree.bytes()) : 0;
+  return this->Internals->Valid
+    ? static_cast<vtkIdType>(this->Internals->Tree.bytes() + this->Internals->Payload.bytes())
+    : 0;
+}
+vtkIdType vtkMatrixTree::GetLeafTrianglesMemorySize() const
+{
+  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Payload.bytes()) : 0;
 }
 vtkIdType vtkMatrixTree::GetLevelMemorySize(int level) const
 {
@@ -314,28 +334,43 @@ vtkIdType vtkMatrixTree::IntersectRays(vtkDataArray* origins, vtkDataArray* dire
     this->LastTriangleTests = static_cast<vtkIdType>(c);
     return hits;
   }
+  // The batch tracer (the renderer's walk: several rays in flight, the leaf triangles' SIMD
+  // tests where kept), in chunks over the threads; counted, for GetLastNodeVisits().
+  const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh, mtree::TriangleTest::MollerTrumbore,
+    in.Payload.empty() ? nullptr : &in.Payload };
   const int threads = mtree::resolveThreads(this->NumberOfThreads);
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 256) reduction(+ : hits, visits, tests)
-  for (vtkIdType i = 0; i < n; ++i)
+  constexpr vtkIdType chunk = 1024;
+  const vtkIdType chunks = (n + chunk - 1) / chunk;
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 1) reduction(+ : hits, visits, tests)
+  for (vtkIdType c = 0; c < chunks; ++c)
   {
-    double o[3], d[3];
-    origins->GetTuple(i, o);
-    directions->GetTuple(i, d);
-    mtree::RayHit h;
-    mtree::TraversalStats st;
-    if (mtree::intersectFirst(in.Tree, in.Mesh, mtree::Vec3(o), mtree::Vec3(d), 0.0, tMax, h, &st))
+    const vtkIdType first = c * chunk, m = std::min(chunk, n - first);
+    std::vector<mtree::Vec3> o(static_cast<size_t>(m)), d(static_cast<size_t>(m));
+    std::vector<double> tmax(static_cast<size_t>(m), tMax);
+    for (vtkIdType i = 0; i < m; ++i)
     {
-      tOut[i] = h.t;
-      cOut[i] = in.CellOfTriangle[h.prim];
-      ++hits;
+      double a[3], b[3];
+      origins->GetTuple(first + i, a);
+      directions->GetTuple(first + i, b);
+      o[i] = mtree::Vec3(a);
+      d[i] = mtree::Vec3(b);
     }
-    else
+    mtree::RayBatch batch;
+    batch.o = o.data();
+    batch.d = d.data();
+    batch.tmax = tmax.data();
+    batch.n = static_cast<size_t>(m);
+    std::vector<mtree::RayHit> h(static_cast<size_t>(m));
+    std::vector<uint32_t> v(static_cast<size_t>(m), 0), k(static_cast<size_t>(m), 0);
+    tracer.first(batch, h.data(), mtree::RayCounters{ v.data(), k.data() });
+    for (vtkIdType i = 0; i < m; ++i)
     {
-      tOut[i] = std::numeric_limits<double>::infinity();
-      cOut[i] = -1;
+      tOut[first + i] = h[i].t;
+      cOut[first + i] = h[i].hit() ? in.CellOfTriangle[h[i].prim] : -1;
+      hits += h[i].hit();
+      visits += v[i];
+      tests += k[i];
     }
-    visits += static_cast<vtkIdType>(st.nodeVisits);
-    tests += static_cast<vtkIdType>(st.primTests);
   }
   this->LastNodeVisits = visits;
   this->LastTriangleTests = tests;
@@ -352,6 +387,7 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "BlockSize: " << this->BlockSize << "\n";
   os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";
   os << indent << "LeafScale: " << this->LeafScale << "\n";
+  os << indent << "LeafTriangles: " << (this->LeafTriangles ? "On" : "Off") << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   vtkMatrixTreeBackend::Print(os, indent, this->Backend, this->OpenCLDevice, this->GetOpenCLDeviceName());
   os << indent << "ConversionTime: " << this->ConversionTime << " ms\n";
@@ -363,7 +399,8 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
     os << indent << "TreeHeight: " << this->GetTreeHeight() << "\n";
     os << indent << "NumberOfTriangles: " << this->GetNumberOfTriangles() << "\n";
     os << indent << "NumberOfLeaves: " << this->GetNumberOfLeaves() << "\n";
-    os << indent << "MemorySize: " << this->GetMemorySize() << " bytes\n";
+    os << indent << "MemorySize: " << this->GetMemorySize() << " bytes (leaf triangles "
+       << this->GetLeafTrianglesMemorySize() << ")\n";
     os << indent << "BuildTime: " << this->GetBuildTime() << " ms\n";
   }
 }

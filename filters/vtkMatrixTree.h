@@ -15,6 +15,10 @@
  * - BlockSize: edge B of the B^3 blocks of every level (power of two 1..32, default 8).
  * - ExactOverlap: on (default) puts a triangle only in the leaves it really overlaps
  *   (separating-axis test); off uses its bounding box (faster build, more tests per ray).
+ * - LeafTriangles: on (default) keeps, after every CPU build, a copy of the corners of every
+ *   triangle the leaves reference, in leaf order (9 doubles, 72 bytes, per reference), which the
+ *   ray queries test several at a time without following the ids to the mesh; off saves that
+ *   memory and gives the same answers, slower (docs/bench_rays.md has the trade measured).
  * - NumberOfThreads: OpenMP threads for the build and the batched queries (0 = all).
  * - Backend: CPU (default, the OpenMP engine) or OPENCL (the build and the batched queries as
  *   OpenCL kernels, on the device OpenCLDevice selects; the same tree and the same answers).
@@ -104,6 +108,13 @@ public:
   vtkGetMacro(LeafScale, double);
   ///@}
 
+  ///@{
+  /** Keep the leaves' triangles in leaf order for the ray queries (default on; see above). */
+  vtkSetMacro(LeafTriangles, bool);
+  vtkGetMacro(LeafTriangles, bool);
+  vtkBooleanMacro(LeafTriangles, bool);
+  ///@}
+
   enum Backends
   {
     CPU = 0,
@@ -165,11 +176,13 @@ public:
   vtkIdType GetNumberOfLeaves() const;
   vtkIdType GetNumberOfReferences() const;
   /**
-   * Bytes of the tree: every level's pointer matrix and blocks, the triangle indices, and the
-   * ray walk's caches (the leaf occupancy bits and the dense upper-level bits, a few percent).
+   * Bytes of the tree: every level's pointer matrix and blocks, the triangle indices, the ray
+   * walk's caches (the leaf occupancy bits, the dense upper-level bits, the step table and its
+   * empty boxes), and the leaf triangles (LeafTriangles; GetLeafTrianglesMemorySize() alone).
    * GetLevelMemorySize(level) is one level's pointer matrix and blocks alone.
    */
   vtkIdType GetMemorySize() const;
+  vtkIdType GetLeafTrianglesMemorySize() const;
   vtkIdType GetLevelMemorySize(int level) const;
   vtkIdType GetLevelNumberOfBlocks(int level) const;
   /** The root box (xmin, xmax, ymin, ymax, zmin, zmax): the triangles' bounds, slightly padded. */
@@ -225,6 +238,7 @@ protected:
   int BlockSize = 8;
   bool ExactOverlap = true;
   double LeafScale = 2.0;
+  bool LeafTriangles = true;
   int NumberOfThreads = 0;
   int Backend = CPU;
   char* OpenCLDevice = nullptr;

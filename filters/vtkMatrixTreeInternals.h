@@ -5,6 +5,7 @@
 
 #include "mtree/core/builder.h"
 #include "mtree/core/primitives.h"
+#include "mtree/rays/leaf_triangles.h"
 
 #include <string>
 #include <vector>
@@ -18,6 +19,7 @@ struct vtkMatrixTreeInternals
   mtree::TriangleMesh Mesh;
   std::vector<vtkIdType> CellOfTriangle; // source polydata cell of every engine triangle
   mtree::MatrixTree Tree;
+  mtree::LeafTriangles Payload; // the ray queries' leaf triangles (vtkMatrixTree::LeafTriangles)
   mtree::BuildStats Stats;
   bool Valid = false;
 };

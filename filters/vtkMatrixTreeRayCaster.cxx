@@ -28,12 +28,14 @@
 #include <vector>
 
 // The SAH kd-tree accelerator's state: its own copy of the triangles (the matrix tree's copy is
-// filled only when that tree is built) and the tree, rebuilt when the input changes.
+// filled only when that tree is built) and the tree, rebuilt when the input changes, with its
+// leaf triangles when the matrix tree keeps them (the same leaf tests for both).
 struct vtkMatrixTreeRayCaster::SahState
 {
   mtree::TriangleMesh Mesh;
   std::vector<vtkIdType> CellOfTriangle;
   mtree::SahKdTree Tree;
+  mtree::LeafTriangles Payload;
   vtkPolyData* Input = nullptr; // identity only, never dereferenced
   vtkMTimeType BuiltAt = 0;
   bool Valid = false;
@@ -108,7 +110,7 @@ int vtkMatrixTreeRayCaster::RequestData(
       return 0;
     }
     SahState& s = *this->Sah;
-    if (s.Input != input || s.BuiltAt < input->GetMTime())
+    if (s.Input != input || s.BuiltAt < input->GetMTime() || s.BuiltAt < this->Tree->GetMTime())
     {
       std::string error;
       s.Valid = false;
@@ -120,6 +122,12 @@ int vtkMatrixTreeRayCaster::RequestData(
       try
       {
         s.Tree.build(s.Mesh);
+        s.Payload.clear();
+        if (this->Tree->GetLeafTriangles() && !s.Tree.primitiveIndices().empty())
+        {
+          s.Payload.build(s.Tree.primitiveIndices().data(), s.Tree.primitiveIndices().size(), s.Mesh,
+            this->NumberOfThreads);
+        }
       }
       catch (const std::exception& e)
       {
@@ -127,7 +135,7 @@ int vtkMatrixTreeRayCaster::RequestData(
         return 0;
       }
       s.Input = input;
-      s.BuiltAt = input->GetMTime();
+      s.BuiltAt = std::max(input->GetMTime(), this->Tree->GetMTime());
       s.Valid = true;
       this->LastRebuilt = true;
       this->LastBuildTime = s.Tree.stats().buildMs;
@@ -191,6 +199,7 @@ int vtkMatrixTreeRayCaster::RequestData(
   mtree::RenderOptions ro;
   ro.shadows = this->Shadows;
   ro.threads = this->NumberOfThreads;
+  ro.counters = this->Counters;
   mtree::RenderResult r;
   const mtree::TriangleTest test =
     this->TriangleTest == WATERTIGHT ? mtree::TriangleTest::Watertight : mtree::TriangleTest::MollerTrumbore;
@@ -199,7 +208,8 @@ int vtkMatrixTreeRayCaster::RequestData(
     const mtree::SahTraversal trav = this->SAHTraversal == RESTART
       ? mtree::SahTraversal::Restart
       : (this->SAHTraversal == SHORT_STACK ? mtree::SahTraversal::ShortStack : mtree::SahTraversal::Stack);
-    const mtree::SahTracer tracer{ this->Sah->Tree, mesh, trav, test, this->ShortStackSize };
+    const mtree::SahTracer tracer{ this->Sah->Tree, mesh, trav, test, this->ShortStackSize,
+      this->Sah->Payload.empty() ? nullptr : &this->Sah->Payload };
     r = mtree::render(tracer, mesh, scene, cam, ro);
   }
   else if (mtree::ocl::Tracer* clTracer = this->Tree->GetOpenCLTracer())
@@ -216,7 +226,7 @@ int vtkMatrixTreeRayCaster::RequestData(
   }
   else
   {
-    const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh, test };
+    const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh, test, in.Payload.empty() ? nullptr : &in.Payload };
     r = mtree::render(tracer, in.Mesh, scene, cam, ro);
   }
   this->UpdateProgress(0.9);
@@ -298,6 +308,7 @@ void vtkMatrixTreeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "ViewAngle: " << this->ViewAngle << "\n";
   os << indent << "AutoCamera: " << (this->AutoCamera ? "On" : "Off") << "\n";
   os << indent << "Shadows: " << (this->Shadows ? "On" : "Off") << "\n";
+  os << indent << "Counters: " << (this->Counters ? "On" : "Off") << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   os << indent << "LastBuildTime: " << this->LastBuildTime << " ms\n";
   os << indent << "LastRenderTime: " << this->LastRenderTime << " ms\n";

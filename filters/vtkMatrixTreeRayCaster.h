@@ -8,8 +8,9 @@
  *
  * The output vtkImageData (ImageSize[0] x ImageSize[1] x 1) has point arrays
  * - "RGB"            unsigned char, 3 components: the shaded image (also the active scalars);
- * - "NodeVisits"     per pixel node lookups (primary + shadow ray): the paper's Figure 1 heat map;
- * - "TriangleTests"  per pixel ray/triangle tests (primary + shadow ray);
+ * - "NodeVisits"     per pixel node lookups (primary + shadow ray): the paper's Figure 1 heat map
+ *                    (with Counters on; zeros otherwise);
+ * - "TriangleTests"  per pixel ray/triangle tests (primary + shadow ray; with Counters on);
  * - "Depth"          primary hit distance (inf where the ray missed);
  * - "CellId"         hit polydata cell (-1 where the ray missed).
  *
@@ -75,6 +76,17 @@ public:
   vtkSetMacro(Shadows, bool);
   vtkGetMacro(Shadows, bool);
   vtkBooleanMacro(Shadows, bool);
+  ///@}
+
+  ///@{
+  /**
+   * Count node visits and triangle tests per pixel (default off). Off, the walks run compiled
+   * without counters, and NodeVisits, TriangleTests and the totals are 0; on, the same walks
+   * count as they go (a few percent slower).
+   */
+  vtkSetMacro(Counters, bool);
+  vtkGetMacro(Counters, bool);
+  vtkBooleanMacro(Counters, bool);
   ///@}
 
   ///@{
@@ -177,6 +189,7 @@ protected:
   double ViewAngle = 30.0;
   bool AutoCamera = true;
   bool Shadows = true;
+  bool Counters = false;
   int NumberOfThreads = 0;
   double LastBuildTime = 0;
   double LastRenderTime = 0;

@@ -40,6 +40,7 @@ APT_PACKAGES=(
   xvfb xauth
   openmpi-bin python3-mpi4py
   paraview paraview-dev
+  libembree-dev
 )
 
 missing=()

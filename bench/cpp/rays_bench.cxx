@@ -46,11 +46,16 @@
 #include <vector>
 
 #include "mtree/core/builder.h"
+#include "mtree/rays/batch_trace.h"
 #include "mtree/rays/intersect.h"
 #include "mtree/device/opencl.h"
 #include "mtree/device/opencl_render.h"
 #include "mtree/rays/render.h"
 #include "mtree/rays/sah_kdtree.h"
+
+#ifdef MT_HAVE_EMBREE
+#include <embree3/rtcore.h>
+#endif
 
 namespace {
 
@@ -124,16 +129,21 @@ double median(std::vector<double> v) {
 
 struct Row {
   std::string method, traversal, test;
-  std::vector<double> buildMs, renderMs, renderCpuMs, buildCpuMs;
-  double rays = 0, primary = 0, nodeVisits = 0, triTests = 0, leaves = 0;  // summed over frames
+  bool payload = true;  // leaf tests on the pre-gathered triangles (else through the ids to the mesh)
+  std::vector<double> buildMs, renderMs, renderCpuMs, buildCpuMs, payloadMs;
+  double rays = 0, primary = 0, nodeVisits = 0, triTests = 0;  // summed over frames (counted renders)
   uint64_t mismatches = 0, checked = 0;
-  size_t bytes = 0;
+  size_t bytes = 0, payloadBytes = 0;
   int height = 0;
   uint64_t nodes = 0, references = 0;
+  double missRays = 0, missCpuMs = 0, missVisits = 0;  // the first frame's in-box misses, traced alone
   std::string backend = "cpu", device;
   std::vector<double> uploadMs, traceMs;                      // opencl rows
   uint64_t cpuMismatches = 0, cpuChecked = 0, shadeMismatches = 0;  // opencl rows vs the CPU render
-  std::string name() const { return method + "-" + traversal + "-" + test + (backend == "cpu" ? "" : "-" + backend); }
+  std::string name() const {
+    return method + "-" + traversal + "-" + test + (payload || method == "embree3" ? "" : "-mesh") +
+           (backend == "cpu" ? "" : "-" + backend);
+  }
 };
 
 struct Sample {
@@ -164,7 +174,9 @@ std::vector<Sample> referenceHits(const TriangleMesh& mesh, const Camera& cam, i
   return out;
 }
 
-uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& samples) {
+// relTol: 1e-6 for the double-precision tracers (the depth is stored as a float), 1e-5 for Embree's
+// float rays.
+uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& samples, double relTol) {
   uint64_t bad = 0;
   for (const auto& s : samples) {
     const uint32_t got = r.hitPrim[size_t(s.pixel)];
@@ -175,7 +187,7 @@ uint64_t countMismatches(const RenderResult& r, const std::vector<Sample>& sampl
       continue;
     }
     const double t = r.depth[size_t(s.pixel)];  // float: compare at float precision
-    if (std::fabs(t - s.ref.t) > 1e-6 * std::max(1.0, std::fabs(s.ref.t))) ++bad;
+    if (std::fabs(t - s.ref.t) > relTol * std::max(1.0, std::fabs(s.ref.t))) ++bad;
   }
   return bad;
 }
@@ -209,19 +221,142 @@ std::string jsonNumbers(const std::vector<double>& v) {
   return o.str();
 }
 
+#ifdef MT_HAVE_EMBREE
+// Embree 3 (float BVH) as render()'s tracer: the outside reference on the same rays, with the same
+// shading and shadow rays. Three builds per frame:
+//   default  a new static scene per frame, RTC_BUILD_QUALITY_MEDIUM (Embree's default);
+//   low      one scene with RTC_SCENE_FLAG_DYNAMIC and RTC_BUILD_QUALITY_LOW, its vertex buffer
+//            rewritten and recommitted each frame (Embree's fastest full rebuild);
+//   refit    the same dynamic scene with the geometry's RTC_BUILD_QUALITY_REFIT: each frame after
+//            the first refits the first frame's BVH to the moved vertices (same triangles).
+struct EmbreeScene {
+  enum Mode { Default = 0, Low = 1, Refit = 2 };
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  RTCGeometry geom = nullptr;
+  float* verts = nullptr;
+  Mode mode = Default;
+  EmbreeScene(int threads, Mode m) : mode(m) {
+    const std::string cfg = "threads=" + std::to_string(threads) + ",set_affinity=0";
+    device = rtcNewDevice(cfg.c_str());
+    if (!device) throw std::runtime_error("rtcNewDevice failed");
+  }
+  ~EmbreeScene() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+  static const char* name(Mode m) { return m == Default ? "bvh-default" : (m == Low ? "bvh-low" : "bvh-refit"); }
+  // The frame's BVH (timed by the caller): the vertices converted to float and the scene committed.
+  void build(const Scene& sc, const std::vector<double>& pts) {
+    const bool fresh = !scene || mode == Default;
+    if (fresh) {
+      if (scene) rtcReleaseScene(scene);
+      scene = rtcNewScene(device);
+      if (mode != Default) {
+        rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC);
+        rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
+      }
+      geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      if (mode == Refit) rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_REFIT);
+      else if (mode == Low) rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_LOW);
+      verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), sc.nv));
+      unsigned* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                     3 * sizeof(unsigned), sc.nt));
+      std::copy(sc.tris.begin(), sc.tris.end(), idx);
+    }
+    for (size_t i = 0; i < pts.size(); ++i) verts[i] = static_cast<float>(pts[i]);
+    if (!fresh) rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(geom);
+    if (fresh) {
+      rtcAttachGeometry(scene, geom);
+      rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(scene);
+  }
+};
+
+struct EmbreeTracer {
+  RTCScene scene;
+  static float toFloat(double t) { return std::isinf(t) ? std::numeric_limits<float>::infinity() : static_cast<float>(t); }
+  bool first(Vec3 o, Vec3 d, double tmin, double tmax, RayHit& h, TraversalStats*) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    rh.ray.org_x = float(o.x);
+    rh.ray.org_y = float(o.y);
+    rh.ray.org_z = float(o.z);
+    rh.ray.dir_x = float(d.x);
+    rh.ray.dir_y = float(d.y);
+    rh.ray.dir_z = float(d.z);
+    rh.ray.tnear = toFloat(tmin);
+    rh.ray.tfar = toFloat(tmax);
+    rh.ray.time = 0;
+    rh.ray.mask = ~0u;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &ctx, &rh);
+    h = RayHit{};
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    h.t = rh.ray.tfar;
+    h.prim = rh.hit.primID;
+    h.u = rh.hit.u;
+    h.v = rh.hit.v;
+    return true;
+  }
+  bool any(Vec3 o, Vec3 d, double tmin, double tmax, TraversalStats*) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRay ray;
+    ray.org_x = float(o.x);
+    ray.org_y = float(o.y);
+    ray.org_z = float(o.z);
+    ray.dir_x = float(d.x);
+    ray.dir_y = float(d.y);
+    ray.dir_z = float(d.z);
+    ray.tnear = toFloat(tmin);
+    ray.tfar = toFloat(tmax);
+    ray.time = 0;
+    ray.mask = ~0u;
+    ray.id = 0;
+    ray.flags = 0;
+    rtcOccluded1(scene, &ctx, &ray);
+    return ray.tfar < 0;  // Embree marks an occluded ray with tfar = -inf
+  }
+};
+#endif
+
+// The primary rays of `cam` that enter `box` and hit nothing in `r` (a render of the frame): the
+// in-box misses, which every tree must walk to the end.
+void inBoxMisses(const Camera& cam, const Box& box, const RenderResult& r, std::vector<Vec3>& dirs) {
+  const PinholeRays rays(cam);
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      if (r.hitPrim[size_t(y) * cam.width + x] != MT_NULL) continue;
+      const Vec3 d = rays.direction(x, y);
+      double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+      if (rayBox(cam.eye, d, box, t0, t1)) dirs.push_back(d);
+    }
+}
+
 int run(int argc, char** argv) {
   if (argc < 3) {
     std::fprintf(stderr,
                  "usage: rays_bench SCENE.bin OUT.json [--threads T] [--repeat R] [--tests mt,watertight]\n"
-                 "       [--methods octree,kdtree,sah-restart,sah-stack,sah-shortstack] [--short-stack K]\n"
-                 "       [--samples S] [--heatmaps DIR] [--backend cpu|opencl|all] [--device SEL]\n");
+                 "       [--methods octree,kdtree,sah-restart,sah-stack,sah-shortstack,embree-default,embree-low,\n"
+                 "        embree-refit] [--short-stack K] [--samples S] [--heatmaps DIR] [--backend cpu|opencl|all]\n"
+                 "       [--device SEL] [--leaves payload|mesh|both] [--in-flight K] [--simd scalar|sse2|avx2]\n");
     return 2;
   }
   const std::string scenePath = argv[1], outPath = argv[2];
   int threads = 0, repeat = 1, samples = 2000, shortStack = 3, octHeight = 0, kdHeight = 0;
   double leafScale = BuildOptions{}.leafScale, maxCandidates = BuildOptions{}.maxCandidates;
-  std::string testsArg = "mt,watertight", methodsArg = "octree,kdtree,sah-restart,sah-stack,sah-shortstack";
-  std::string heatDir, backend = "cpu", deviceSel;
+  std::string testsArg = "mt,watertight",
+              methodsArg = "octree,kdtree,sah-restart,sah-stack,sah-shortstack,embree-default,embree-low,embree-refit";
+  std::string heatDir, backend = "cpu", deviceSel, leavesArg = "payload";
+  TraceTuning tuning;
+  tuning.simd = simdSupported();
   for (int i = 3; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -241,7 +376,16 @@ int run(int argc, char** argv) {
     else if (a == "--kdtree-height") kdHeight = std::stoi(next());
     else if (a == "--leaf-scale") leafScale = std::stod(next());
     else if (a == "--max-candidates") maxCandidates = std::stod(next());
-    else throw std::runtime_error("unknown option " + a);
+    else if (a == "--leaves") leavesArg = next();
+    else if (a == "--in-flight") tuning.inFlight = std::stoi(next());
+    else if (a == "--simd") {
+      const std::string v = next();
+      if (v == "scalar") tuning.simd = Simd::Scalar;
+      else if (v == "sse2") tuning.simd = Simd::Sse2;
+      else if (v == "avx2") tuning.simd = Simd::Avx2;
+      else throw std::runtime_error("--simd must be scalar, sse2 or avx2");
+      tuning.simd = std::min(tuning.simd, simdSupported());
+    } else throw std::runtime_error("unknown option " + a);
   }
   auto has = [](const std::string& list, const std::string& item) {
     return ("," + list + ",").find("," + item + ",") != std::string::npos;
@@ -250,6 +394,11 @@ int run(int argc, char** argv) {
   if (has(testsArg, "mt")) tests.push_back(TriangleTest::MollerTrumbore);
   if (has(testsArg, "watertight")) tests.push_back(TriangleTest::Watertight);
   if (tests.empty()) throw std::runtime_error("--tests must name mt and/or watertight");
+  if (leavesArg != "payload" && leavesArg != "mesh" && leavesArg != "both")
+    throw std::runtime_error("--leaves must be payload, mesh or both");
+  std::vector<bool> leafModes;
+  if (leavesArg != "mesh") leafModes.push_back(true);
+  if (leavesArg != "payload") leafModes.push_back(false);
   threads = resolveThreads(threads);
   if (backend != "cpu" && backend != "opencl" && backend != "all")
     throw std::runtime_error("--backend must be cpu, opencl or all");
@@ -269,8 +418,8 @@ int run(int argc, char** argv) {
   }
 
   Scene sc = readScene(scenePath);
-  std::fprintf(stderr, "rays_bench: %u triangles, %u frames, %dx%d, %d threads\n", sc.nt, sc.nf, sc.cam.width,
-               sc.cam.height, threads);
+  std::fprintf(stderr, "rays_bench: %u triangles, %u frames, %dx%d, %d threads, leaf tests %s, %d rays in flight\n",
+               sc.nt, sc.nf, sc.cam.width, sc.cam.height, threads, simdName(tuning.simd), tuning.inFlight);
 
   const char* testName[2] = {"mt", "watertight"};
   struct MtMethod {
@@ -284,17 +433,26 @@ int run(int argc, char** argv) {
   if (has(methodsArg, "sah-restart")) sahTravs.push_back(SahTraversal::Restart);
   if (has(methodsArg, "sah-stack")) sahTravs.push_back(SahTraversal::Stack);
   if (has(methodsArg, "sah-shortstack")) sahTravs.push_back(SahTraversal::ShortStack);
+#ifdef MT_HAVE_EMBREE
+  std::vector<std::unique_ptr<EmbreeScene>> embree;
+  if (useCpu)
+    for (auto m : {EmbreeScene::Default, EmbreeScene::Low, EmbreeScene::Refit})
+      if (has(methodsArg, std::string("embree-") + (m == EmbreeScene::Default ? "default" : m == EmbreeScene::Low ? "low" : "refit")))
+        embree.push_back(std::make_unique<EmbreeScene>(threads, m));
+#endif
 
   // Rows in output order.
   std::vector<Row> rows;
-  auto rowFor = [&](const std::string& m, const std::string& t, TriangleTest test,
+  auto rowFor = [&](const std::string& m, const std::string& t, TriangleTest test, bool payload,
                     const std::string& be = "cpu") -> Row& {
     for (auto& r : rows)
-      if (r.method == m && r.traversal == t && r.test == testName[int(test)] && r.backend == be) return r;
+      if (r.method == m && r.traversal == t && r.test == testName[int(test)] && r.payload == payload && r.backend == be)
+        return r;
     Row row;
     row.method = m;
     row.traversal = t;
     row.test = testName[int(test)];
+    row.payload = payload;
     row.backend = be;
     row.device = be == "cpu" ? cpuDevice : clDevice;
     rows.push_back(row);
@@ -302,19 +460,30 @@ int run(int argc, char** argv) {
   };
   if (useCpu) {
     for (const auto& m : mtMethods)
-      for (auto t : tests) rowFor(m.name, "matrix", t);
+      for (auto t : tests)
+        for (bool pl : leafModes) rowFor(m.name, "matrix", t, pl);
     for (auto tr : sahTravs)
-      for (auto t : tests) rowFor("sah", sahTraversalName(tr), t);
+      for (auto t : tests)
+        for (bool pl : leafModes) rowFor("sah", sahTraversalName(tr), t, pl);
+#ifdef MT_HAVE_EMBREE
+    for (const auto& e : embree) rowFor("embree3", EmbreeScene::name(e->mode), TriangleTest::MollerTrumbore, false).test = "embree-float";
+#endif
   }
   if (useCl)
-    for (const auto& m : mtMethods) rowFor(m.name, "matrix", TriangleTest::MollerTrumbore, "opencl");
+    for (const auto& m : mtMethods) rowFor(m.name, "matrix", TriangleTest::MollerTrumbore, false, "opencl");
   if (!useCpu) sahTravs.clear();
+  const bool wantPayload = leavesArg != "mesh";
 
   std::vector<MatrixTree> mtTrees(mtMethods.size());
+  std::vector<LeafTriangles> mtPayloads(mtMethods.size());
   SahKdTree sah;
+  LeafTriangles sahPayload;
   std::vector<Sample> firstRef, lastRef;
   RenderOptions ropt;
   ropt.threads = threads;
+  RenderOptions countOpt = ropt;
+  countOpt.counters = true;
+  std::vector<Vec3> missDirs;  // the first frame's in-box misses (from the first counted render)
 
   for (uint32_t fi = 0; fi < sc.nf; ++fi) {
     const TriangleMesh mesh(sc.frames[fi], sc.tris);
@@ -326,38 +495,75 @@ int run(int argc, char** argv) {
       if (fi == 0) firstRef = ref;
       if (fi + 1 == sc.nf) lastRef = ref;
     }
-    auto account = [&](Row& row, const RenderResult& r, double bms, double rms, double rcpu, double bcpu = 0) {
+    // The row's frame: times (medians of `repeat`), the work counted in an untimed render with
+    // counters, and the timed render's first hits against the brute force.
+    auto account = [&](Row& row, const RenderResult& timed, const RenderResult& counted, double bms, double rms,
+                       double rcpu, double bcpu) {
       row.buildMs.push_back(bms);
       row.buildCpuMs.push_back(bcpu);
       row.renderMs.push_back(rms);
       row.renderCpuMs.push_back(rcpu);
-      row.rays += double(r.primaryRays + r.shadowRays);
-      row.primary += double(r.primaryRays);
-      row.nodeVisits += double(r.stats.nodeVisits);
-      row.triTests += double(r.stats.primTests);
-      row.leaves += double(r.stats.cells);
+      row.rays += double(counted.primaryRays + counted.shadowRays);
+      row.primary += double(counted.primaryRays);
+      row.nodeVisits += double(counted.stats.nodeVisits);
+      row.triTests += double(counted.stats.primTests);
       if (check) {
-        row.mismatches += countMismatches(r, ref);
+        row.mismatches += countMismatches(timed, ref, row.method == "embree3" ? 1e-5 : 1e-6);
         row.checked += ref.size();
       }
       if (fi == 0 && !heatDir.empty() && row.backend == "cpu") {
         const std::string base = heatDir + "/" + row.name();
-        writeRaw(base + ".visits", r.nodeVisits.data(), r.nodeVisits.size() * 4);
-        writeRaw(base + ".tests", r.primTests.data(), r.primTests.size() * 4);
-        writeRaw(base + ".rgb", r.rgb.data(), r.rgb.size());
+        writeRaw(base + ".visits", counted.nodeVisits.data(), counted.nodeVisits.size() * 4);
+        writeRaw(base + ".tests", counted.primTests.data(), counted.primTests.size() * 4);
+        writeRaw(base + ".rgb", timed.rgb.data(), timed.rgb.size());
       }
     };
 
-    // `repeat` renders of this frame through `tracer`: wall and CPU times, the last result.
-    auto timedRenders = [&](const auto& tracer, std::vector<double>& wall, std::vector<double>& cpu) {
-      RenderResult r;
+    // `repeat` renders of this frame through `tracer` without counters (wall and CPU times, the
+    // last result), then one with counters, untimed; on the first frame, the in-box misses.
+    auto measure = [&](Row& row, const auto& tracer, double bms, double bcpu) {
+      std::vector<double> wall, cpu;
+      RenderResult timed;
       for (int k = 0; k < repeat; ++k) {
         const double c0 = cpuMs();
-        r = render(tracer, mesh, box, sc.cam, ropt);
+        timed = render(tracer, mesh, box, sc.cam, ropt);
         cpu.push_back(cpuMs() - c0);
-        wall.push_back(r.ms);
+        wall.push_back(timed.ms);
       }
-      return r;
+      const RenderResult counted = render(tracer, mesh, box, sc.cam, countOpt);
+      account(row, timed, counted, bms, median(wall), median(cpu), bcpu);
+      if (fi != 0) return;
+      if (missDirs.empty()) inBoxMisses(sc.cam, box, counted, missDirs);
+      if (missDirs.empty()) return;
+      // The misses alone, in batches of a row's length, without counters (median of `repeat`).
+      const std::vector<Vec3> eyes(missDirs.size(), sc.cam.eye);
+      std::vector<RayHit> hits(missDirs.size());
+      const size_t chunk = size_t(std::max(1, sc.cam.width));
+      std::vector<double> mt;
+      for (int k = 0; k < repeat; ++k) {
+        const double c0 = cpuMs();
+        for (size_t at = 0; at < missDirs.size(); at += chunk) {
+          RayBatch b;
+          b.o = eyes.data() + at;
+          b.d = missDirs.data() + at;
+          b.n = std::min(chunk, missDirs.size() - at);
+          detail::firstHits(tracer, b, hits.data() + at, RayCounters{});
+        }
+        mt.push_back(cpuMs() - c0);
+      }
+      std::vector<uint32_t> v(missDirs.size(), 0), t(missDirs.size(), 0);
+      for (size_t at = 0; at < missDirs.size(); at += chunk) {
+        RayBatch b;
+        b.o = eyes.data() + at;
+        b.d = missDirs.data() + at;
+        b.n = std::min(chunk, missDirs.size() - at);
+        detail::firstHits(tracer, b, hits.data() + at, RayCounters{v.data() + at, t.data() + at});
+      }
+      row.missRays = double(missDirs.size());
+      row.missCpuMs = median(mt);
+      double vs = 0;
+      for (uint32_t x : v) vs += x;
+      row.missVisits = vs;
     };
 
     for (size_t mi = 0; mi < mtMethods.size(); ++mi) {
@@ -367,7 +573,7 @@ int run(int argc, char** argv) {
       bo.height = bo.kind == TreeKind::Octree ? octHeight : kdHeight;
       bo.leafScale = leafScale;
       bo.maxCandidates = maxCandidates;
-      std::vector<double> bt, bc;
+      std::vector<double> bt, bc, pt, pc;
       BuildStats bs;
       RenderResult cpuMt;  // the CPU engine's Moller-Trumbore render of this frame, for the device rows
       bool haveCpuMt = false;
@@ -378,25 +584,36 @@ int run(int argc, char** argv) {
         MatrixTreeBuilder<TriangleMesh>::build(mesh, bo, mtTrees[mi], &bs);
         bt.push_back(msSince(t0));
         bc.push_back(cpuMs() - c0);
+        // The payload is part of the build of a frame that renders with it.
+        const double p0 = cpuMs();
+        const auto tp = Clock::now();
+        if (wantPayload)
+          mtPayloads[mi].build(mtTrees[mi].primitiveIndices().data(), mtTrees[mi].primitiveIndices().size(), mesh,
+                               threads);
+        pt.push_back(msSince(tp));
+        pc.push_back(cpuMs() - p0);
       }
       for (auto test : tests) {
         if (!useCpu) break;
-        Row& row = rowFor(mtMethods[mi].name, "matrix", test);
-        MatrixTreeTracer tracer{mtTrees[mi], mesh, test};
-        std::vector<double> rt, ct;
-        const RenderResult r = timedRenders(tracer, rt, ct);
-        account(row, r, median(bt), median(rt), median(ct), median(bc));
-        row.bytes = mtTrees[mi].bytes();
-        row.height = mtTrees[mi].height();
-        row.references = bs.references;
-        row.nodes = bs.leaves;
-        if (test == TriangleTest::MollerTrumbore) {
-          cpuMt = std::move(r);
+        for (bool pl : leafModes) {
+          Row& row = rowFor(mtMethods[mi].name, "matrix", test, pl);
+          MatrixTreeTracer tracer{mtTrees[mi], mesh, test, pl ? &mtPayloads[mi] : nullptr, tuning};
+          measure(row, tracer, median(bt) + (pl ? median(pt) : 0), median(bc) + (pl ? median(pc) : 0));
+          row.payloadMs.push_back(pl ? median(pc) : 0);
+          row.bytes = mtTrees[mi].bytes();
+          row.payloadBytes = pl ? mtPayloads[mi].bytes() : 0;
+          row.height = mtTrees[mi].height();
+          row.references = bs.references;
+          row.nodes = bs.leaves;
+        }
+        if (test == TriangleTest::MollerTrumbore && useCl) {
+          cpuMt = render(MatrixTreeTracer{mtTrees[mi], mesh, test, wantPayload ? &mtPayloads[mi] : nullptr, tuning},
+                         mesh, box, sc.cam, ropt);
           haveCpuMt = true;
         }
       }
       if (useCl) {
-        Row& row = rowFor(mtMethods[mi].name, "matrix", TriangleTest::MollerTrumbore, "opencl");
+        Row& row = rowFor(mtMethods[mi].name, "matrix", TriangleTest::MollerTrumbore, false, "opencl");
         MatrixTree clTree;
         BuildStats cbs;
         std::vector<double> cbt, cbc, cut, crt, ctt, cct;
@@ -428,7 +645,9 @@ int run(int argc, char** argv) {
           crt.push_back(r.ms);
           ctt.push_back(tms);
         }
-        account(row, r, median(cbt), median(crt), median(cct), median(cbc));
+        double untimed = 0;
+        const RenderResult counted = renderOpenCL(*clTracer, mesh, box, sc.cam, countOpt, &untimed);
+        account(row, r, counted, median(cbt), median(crt), median(cct), median(cbc));
         row.uploadMs.push_back(median(cut));
         row.traceMs.push_back(median(ctt));
         row.bytes = clTree.bytes();
@@ -447,28 +666,55 @@ int run(int argc, char** argv) {
       }
     }
     if (!sahTravs.empty()) {
-      std::vector<double> bt, bc;
+      std::vector<double> bt, bc, pt, pc;
       for (int k = 0; k < repeat; ++k) {
         const double c0 = cpuMs();
         const auto t0 = Clock::now();
         sah.build(mesh);
         bt.push_back(msSince(t0));
         bc.push_back(cpuMs() - c0);
+        const double p0 = cpuMs();
+        const auto tp = Clock::now();
+        if (wantPayload) sah.primitiveIndices().empty() ? sahPayload.clear()
+                                                        : sahPayload.build(sah.primitiveIndices().data(),
+                                                                           sah.primitiveIndices().size(), mesh, threads);
+        pt.push_back(msSince(tp));
+        pc.push_back(cpuMs() - p0);
       }
       for (auto tr : sahTravs) {
         for (auto test : tests) {
-          Row& row = rowFor("sah", sahTraversalName(tr), test);
-          SahTracer tracer{sah, mesh, tr, test, shortStack};
-          std::vector<double> rt, ct;
-          const RenderResult r = timedRenders(tracer, rt, ct);
-          account(row, r, median(bt), median(rt), median(ct), median(bc));
-          row.bytes = sah.bytes();
-          row.height = sah.stats().depth;
-          row.references = sah.stats().references;
-          row.nodes = sah.stats().nodes;
+          for (bool pl : leafModes) {
+            Row& row = rowFor("sah", sahTraversalName(tr), test, pl);
+            SahTracer tracer{sah, mesh, tr, test, shortStack, pl ? &sahPayload : nullptr, tuning};
+            measure(row, tracer, median(bt) + (pl ? median(pt) : 0), median(bc) + (pl ? median(pc) : 0));
+            row.payloadMs.push_back(pl ? median(pc) : 0);
+            row.bytes = sah.bytes();
+            row.payloadBytes = pl ? sahPayload.bytes() : 0;
+            row.height = sah.stats().depth;
+            row.references = sah.stats().references;
+            row.nodes = sah.stats().nodes;
+          }
         }
       }
     }
+#ifdef MT_HAVE_EMBREE
+    for (const auto& e : embree) {
+      Row* row = nullptr;
+      for (auto& r : rows)
+        if (r.method == "embree3" && r.traversal == EmbreeScene::name(e->mode)) row = &r;
+      // The refit build needs the first frame's BVH: `repeat` builds refit it to the same points.
+      std::vector<double> bt, bc;
+      for (int k = 0; k < repeat; ++k) {
+        const double c0 = cpuMs();
+        const auto t0 = Clock::now();
+        e->build(sc, sc.frames[fi]);
+        bt.push_back(msSince(t0));
+        bc.push_back(cpuMs() - c0);
+      }
+      measure(*row, EmbreeTracer{e->scene}, median(bt), median(bc));
+      row->payloadMs.push_back(0);
+    }
+#endif
     std::fprintf(stderr, "\rrays_bench: frame %u/%u", fi + 1, sc.nf);
   }
   std::fprintf(stderr, "\n");
@@ -476,23 +722,32 @@ int run(int argc, char** argv) {
   std::ofstream out(outPath);
   out.precision(9);
   out << "{\n  \"threads\": " << threads << ",\n  \"triangles\": " << sc.nt << ",\n  \"frames\": " << sc.nf
-      << ",\n  \"width\": " << sc.cam.width << ",\n  \"height\": " << sc.cam.height << ",\n  \"rows\": [\n";
+      << ",\n  \"width\": " << sc.cam.width << ",\n  \"height\": " << sc.cam.height << ",\n  \"simd\": \""
+      << simdName(tuning.simd) << "\",\n  \"in_flight\": " << tuning.inFlight << ",\n  \"rows\": [\n";
   for (size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];
-    double b = 0, m = 0, mc = 0, bcpu = 0;
+    double b = 0, m = 0, mc = 0, bcpu = 0, pms = 0;
     for (double x : r.renderCpuMs) mc += x;
     for (double x : r.buildCpuMs) bcpu += x;
     for (double x : r.buildMs) b += x;
     for (double x : r.renderMs) m += x;
+    for (double x : r.payloadMs) pms += x;
     const double nf = double(std::max<size_t>(1, r.renderMs.size()));
     out << "    {\"method\": \"" << r.method << "\", \"traversal\": \"" << r.traversal << "\", \"test\": \""
-        << r.test << "\", \"build_ms\": " << b / nf << ", \"build_cpu_ms\": " << bcpu / nf << ", \"render_ms\": " << m / nf << ", \"render_cpu_ms\": " << mc / nf
+        << r.test << "\", \"leaves\": \"" << (r.method == "embree3" ? "embree" : r.payload ? "payload" : "mesh")
+        << "\", \"build_ms\": " << b / nf
+        << ", \"build_cpu_ms\": " << bcpu / nf << ", \"payload_cpu_ms\": " << pms / nf
+        << ", \"render_ms\": " << m / nf << ", \"render_cpu_ms\": " << mc / nf
         << ", \"rays\": " << r.rays / nf << ", \"primary_rays\": " << r.primary / nf
         << ", \"node_visits_per_ray\": " << (r.rays > 0 ? r.nodeVisits / r.rays : 0)
         << ", \"tri_tests_per_ray\": " << (r.rays > 0 ? r.triTests / r.rays : 0)
-        << ", \"leaves_per_ray\": " << (r.rays > 0 ? r.leaves / r.rays : 0)
+        << ", \"ns_per_visit\": " << (r.nodeVisits > 0 ? 1e6 * mc / r.nodeVisits : 0)
+        << ", \"miss_rays\": " << r.missRays
+        << ", \"miss_ns_per_ray\": " << (r.missRays > 0 ? 1e6 * r.missCpuMs / r.missRays : 0)
+        << ", \"miss_visits_per_ray\": " << (r.missRays > 0 ? r.missVisits / r.missRays : 0)
         << ", \"mismatches_vs_brute_force\": " << r.mismatches << ", \"rays_checked\": " << r.checked
-        << ", \"bytes\": " << r.bytes << ", \"height\": " << r.height << ", \"references\": " << r.references
+        << ", \"bytes\": " << r.bytes << ", \"payload_bytes\": " << r.payloadBytes << ", \"height\": " << r.height
+        << ", \"references\": " << r.references
         << ", \"nodes\": " << r.nodes << ", \"build_ms_frames\": " << jsonNumbers(r.buildMs)
         << ", \"render_ms_frames\": " << jsonNumbers(r.renderMs) << ", \"backend\": \"" << r.backend
         << "\", \"device\": \"" << r.device << "\"";

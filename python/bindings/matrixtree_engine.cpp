@@ -15,6 +15,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -316,7 +317,7 @@ nb::dict renderDict(mtree::RenderResult r, const std::vector<int64_t>& cellOfTri
 template <class Tracer>
 nb::dict renderSurface(const Tracer& tracer, const mtree::TriangulatedSurface& surface, int width, int height,
                        const std::vector<double>& eye, const std::vector<double>& target,
-                       const std::vector<double>& up, double viewAngle, bool shadows, int threads) {
+                       const std::vector<double>& up, double viewAngle, bool shadows, bool counters, int threads) {
   if (width < 1 || height < 1 || width > 16384 || height > 16384)
     throw nb::value_error("the image size must be 1..16384 pixels per side");
   mtree::Camera cam;
@@ -329,6 +330,7 @@ nb::dict renderSurface(const Tracer& tracer, const mtree::TriangulatedSurface& s
   mtree::RenderOptions opt;
   opt.shadows = shadows;
   opt.threads = threads;
+  opt.counters = counters;
   mtree::RenderResult r;
   {
     nb::gil_scoped_release unlocked;
@@ -339,8 +341,8 @@ nb::dict renderSurface(const Tracer& tracer, const mtree::TriangulatedSurface& s
   return renderDict(std::move(r), surface.cellOfTriangle);
 }
 
-/// First hits of n rays through `tracer`: t (inf on a miss), the polydata cell (-1), and the
-/// summed node visits and triangle tests.
+/// First hits of n rays through `tracer` (its batches, counted): t (inf on a miss), the polydata
+/// cell (-1), and the summed node visits and triangle tests.
 template <class Tracer>
 nb::tuple traceRays(const Tracer& tracer, const std::vector<int64_t>& cellOfTriangle, Points o, Points d, double tMax,
                     int threads) {
@@ -351,16 +353,31 @@ nb::tuple traceRays(const Tracer& tracer, const std::vector<int64_t>& cellOfTria
   uint64_t visits = 0, tests = 0;
   {
     nb::gil_scoped_release unlocked;
-    const int64_t m = static_cast<int64_t>(n);
-#pragma omp parallel for num_threads(mtree::resolveThreads(threads)) schedule(dynamic, 256) reduction(+ : visits, tests)
-    for (int64_t i = 0; i < m; ++i) {
-      mtree::RayHit h;
-      mtree::TraversalStats st;
-      const bool hit = tracer.first(mtree::Vec3(o.data() + 3 * i), mtree::Vec3(d.data() + 3 * i), 0.0, tMax, h, &st);
-      t[size_t(i)] = hit ? h.t : kInf;
-      cells[size_t(i)] = hit ? cellOfTriangle[h.prim] : -1;
-      visits += st.nodeVisits;
-      tests += st.primTests;
+    constexpr int64_t chunk = 1024;
+    const int64_t chunks = (static_cast<int64_t>(n) + chunk - 1) / chunk;
+#pragma omp parallel for num_threads(mtree::resolveThreads(threads)) schedule(dynamic, 1) reduction(+ : visits, tests)
+    for (int64_t c = 0; c < chunks; ++c) {
+      const size_t first = size_t(c * chunk), m = std::min(size_t(chunk), n - first);
+      std::vector<mtree::Vec3> ro(m), rd(m);
+      for (size_t i = 0; i < m; ++i) {
+        ro[i] = mtree::Vec3(o.data() + 3 * (first + i));
+        rd[i] = mtree::Vec3(d.data() + 3 * (first + i));
+      }
+      const std::vector<double> tmax(m, tMax);
+      mtree::RayBatch b;
+      b.o = ro.data();
+      b.d = rd.data();
+      b.tmax = tmax.data();
+      b.n = m;
+      std::vector<mtree::RayHit> h(m);
+      std::vector<uint32_t> v(m, 0), k(m, 0);
+      tracer.first(b, h.data(), mtree::RayCounters{v.data(), k.data()});
+      for (size_t i = 0; i < m; ++i) {
+        t[first + i] = h[i].hit() ? h[i].t : kInf;
+        cells[first + i] = h[i].hit() ? cellOfTriangle[h[i].prim] : -1;
+        visits += v[i];
+        tests += k[i];
+      }
     }
   }
   return nb::make_tuple(toNumpy(std::move(t), {n}), toNumpy(std::move(cells), {n}), visits, tests);
@@ -396,10 +413,12 @@ class SurfaceTree {
     surface_ = surfaceOf(points, polyOffsets, polyConn, stripOffsets, stripConn, firstCell);
     nb::gil_scoped_release unlocked;
     mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(surface_.mesh, opt, tree_, &stats_);
+    // The leaf triangles the ray queries test (as vtkMatrixTree keeps them by default).
+    payload_.build(tree_.primitiveIndices().data(), tree_.primitiveIndices().size(), surface_.mesh, threads);
   }
 
   nb::tuple intersect(Points o, Points d, double tMax, const std::string& test) const {
-    const mtree::MatrixTreeTracer tracer{tree_, surface_.mesh, triangleTest(test)};
+    const mtree::MatrixTreeTracer tracer{tree_, surface_.mesh, triangleTest(test), &payload_};
     return traceRays(tracer, surface_.cellOfTriangle, o, d, tMax, threads_);
   }
 
@@ -424,9 +443,10 @@ class SurfaceTree {
   }
 
   nb::dict render(int width, int height, const std::vector<double>& eye, const std::vector<double>& target,
-                  const std::vector<double>& up, double viewAngle, bool shadows, const std::string& test) const {
-    const mtree::MatrixTreeTracer tracer{tree_, surface_.mesh, triangleTest(test)};
-    return renderSurface(tracer, surface_, width, height, eye, target, up, viewAngle, shadows, threads_);
+                  const std::vector<double>& up, double viewAngle, bool shadows, const std::string& test,
+                  bool counters) const {
+    const mtree::MatrixTreeTracer tracer{tree_, surface_.mesh, triangleTest(test), &payload_};
+    return renderSurface(tracer, surface_, width, height, eye, target, up, viewAngle, shadows, counters, threads_);
   }
 
   nb::dict nodes(int lo, int hi) const { return nodesDict(tree_, lo, hi); }
@@ -435,6 +455,7 @@ class SurfaceTree {
     nb::dict d;
     addTreeStats(d, tree_, stats_);
     d["triangles"] = surface_.mesh.size();
+    d["leaf_triangles_bytes"] = payload_.bytes();
     return d;
   }
 
@@ -443,6 +464,7 @@ class SurfaceTree {
  private:
   mtree::TriangulatedSurface surface_;
   mtree::MatrixTree tree_;
+  mtree::LeafTriangles payload_;
   mtree::BuildStats stats_;
   int threads_ = 0;
 };
@@ -456,19 +478,21 @@ class SahTree {
     surface_ = surfaceOf(points, polyOffsets, polyConn, stripOffsets, stripConn, firstCell);
     nb::gil_scoped_release unlocked;
     tree_.build(surface_.mesh);
+    if (!tree_.primitiveIndices().empty())
+      payload_.build(tree_.primitiveIndices().data(), tree_.primitiveIndices().size(), surface_.mesh, threads);
   }
 
   nb::tuple intersect(Points o, Points d, double tMax, const std::string& traversal, int shortStack,
                       const std::string& test) const {
-    const mtree::SahTracer tracer{tree_, surface_.mesh, sahTraversal(traversal), triangleTest(test), shortStack};
+    const mtree::SahTracer tracer{tree_, surface_.mesh, sahTraversal(traversal), triangleTest(test), shortStack, leaves()};
     return traceRays(tracer, surface_.cellOfTriangle, o, d, tMax, threads_);
   }
 
   nb::dict render(int width, int height, const std::vector<double>& eye, const std::vector<double>& target,
                   const std::vector<double>& up, double viewAngle, bool shadows, const std::string& traversal,
-                  int shortStack, const std::string& test) const {
-    const mtree::SahTracer tracer{tree_, surface_.mesh, sahTraversal(traversal), triangleTest(test), shortStack};
-    return renderSurface(tracer, surface_, width, height, eye, target, up, viewAngle, shadows, threads_);
+                  int shortStack, const std::string& test, bool counters) const {
+    const mtree::SahTracer tracer{tree_, surface_.mesh, sahTraversal(traversal), triangleTest(test), shortStack, leaves()};
+    return renderSurface(tracer, surface_, width, height, eye, target, up, viewAngle, shadows, counters, threads_);
   }
 
   nb::dict stats() const {
@@ -487,8 +511,10 @@ class SahTree {
   }
 
  private:
+  const mtree::LeafTriangles* leaves() const { return payload_.empty() ? nullptr : &payload_; }
   mtree::TriangulatedSurface surface_;
   mtree::SahKdTree tree_;
+  mtree::LeafTriangles payload_;
   int threads_ = 0;
 };
 
@@ -648,7 +674,8 @@ NB_MODULE(matrixtree_engine, m) {
            "test"_a = "moller-trumbore", "(t, cells, node_visits, triangle_tests) of each ray's first hit")
       .def("find_leaves", &SurfaceTree::findLeaves, "points"_a)
       .def("render", &SurfaceTree::render, "width"_a, "height"_a, "eye"_a, "target"_a, "up"_a,
-           "view_angle"_a = 30.0, "shadows"_a = true, "test"_a = "moller-trumbore")
+           "view_angle"_a = 30.0, "shadows"_a = true, "test"_a = "moller-trumbore", "counters"_a = false,
+           "per-pixel node visits and triangle tests only with counters (the walks run without them otherwise)")
       .def("nodes", &SurfaceTree::nodes, "lo"_a = 0, "hi"_a = -1)
       .def("stats", &SurfaceTree::stats)
       .def_prop_ro("cell_of_triangle", &SurfaceTree::cellOfTriangle, nb::rv_policy::move);
@@ -660,7 +687,8 @@ NB_MODULE(matrixtree_engine, m) {
       .def("intersect", &SahTree::intersect, "origins"_a, "directions"_a, "t_max"_a = kInf, "traversal"_a = "stack",
            "short_stack"_a = 3, "test"_a = "moller-trumbore")
       .def("render", &SahTree::render, "width"_a, "height"_a, "eye"_a, "target"_a, "up"_a, "view_angle"_a = 30.0,
-           "shadows"_a = true, "traversal"_a = "stack", "short_stack"_a = 3, "test"_a = "moller-trumbore")
+           "shadows"_a = true, "traversal"_a = "stack", "short_stack"_a = 3, "test"_a = "moller-trumbore",
+           "counters"_a = false)
       .def("stats", &SahTree::stats);
 
   nb::class_<Volume>(m, "Volume", "A scalar volume in the block-sparse encoding, classified by a transfer table.")

@@ -174,8 +174,8 @@ class MatrixTree:
         return self
 
     def stats(self) -> dict:
-        """Build statistics: height, triangles, leaves, references, bytes, per-level bytes,
-        blocks and node counts, the root box, per-phase build times (ms) and the total (ms)."""
+        """Build statistics: height, triangles, leaves, references, bytes (the tree with its leaf
+        triangles), the leaf triangles' bytes alone, per-level bytes, blocks and node counts, the root box, per-phase build times (ms) and the total (ms)."""
         t = self._tree
         h = t.GetTreeHeight()
         root = [0.0] * 6
@@ -187,6 +187,7 @@ class MatrixTree:
             "leaves": t.GetNumberOfLeaves(),
             "references": t.GetNumberOfReferences(),
             "bytes": t.GetMemorySize(),
+            "leaf_triangle_bytes": t.GetLeafTrianglesMemorySize(),
             "level_bytes": [t.GetLevelMemorySize(l) for l in range(h + 1)],
             "level_blocks": [t.GetLevelNumberOfBlocks(l) for l in range(h + 1)],
             "leaf_dims": [t.GetLevelDimension(h, a) for a in range(3)],
@@ -257,7 +258,7 @@ _TESTS = {"moller-trumbore": 0, "mt": 0, "watertight": 1}
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
            shadows: bool = True, threads: int = 0, caster: vtkMatrixTreeRayCaster | None = None,
            backend: str = "cpu", traversal: str = "stack", triangle_test: str = "moller-trumbore",
-           leaf_scale: float | None = None) -> dict:
+           leaf_scale: float | None = None, counters: bool = False) -> dict:
     """Ray cast a mesh through a matrix tree: primary rays, one shadow ray per hit, Lambert shading.
 
     Parameters
@@ -286,6 +287,9 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         angle in degrees, default 30).
     shadows : bool, default: True
     threads : int, default: 0
+    counters : bool, default: False
+        Count node visits and triangle tests per pixel (the paper's Figure 1). Off, the walks run
+        without counters (the timed render) and the counts in the result are ``None``.
     caster : vtkMatrixTreeRayCaster, optional
         Reuse a caster (and its tree) across frames; the tree is rebuilt only if the mesh changed.
     backend : {"cpu", "opencl"}, default: "cpu"
@@ -296,9 +300,9 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     -------
     dict
         ``rgb`` (H, W, 3) uint8 with row 0 at the top, ``node_visits`` and ``triangle_tests``
-        (H, W) uint32, ``depth`` (H, W) float32, ``build_ms``, ``render_ms``, ``rebuilt``,
-        ``rays`` (primary + shadow), ``node_visits_per_ray``, ``triangle_tests_per_ray``,
-        ``caster``.
+        (H, W) uint32 (``None`` without ``counters``), ``depth`` (H, W) float32, ``build_ms``,
+        ``render_ms``, ``rebuilt``, ``rays`` (primary + shadow), ``node_visits_per_ray``,
+        ``triangle_tests_per_ray`` (``None`` without ``counters``), ``caster``.
 
     Examples
     --------
@@ -334,6 +338,7 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     rc.SetInputData(pd)
     rc.SetImageSize(w, h)
     rc.SetShadows(bool(shadows))
+    rc.SetCounters(bool(counters))
     if camera is None:
         rc.AutoCameraOn()
     else:
@@ -357,23 +362,23 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     rays = rc.GetNumberOfPrimaryRays() + rc.GetNumberOfShadowRays()
     return {
         "rgb": grid("RGB", 3),
-        "node_visits": grid("NodeVisits"),
-        "triangle_tests": grid("TriangleTests"),
+        "node_visits": grid("NodeVisits") if counters else None,
+        "triangle_tests": grid("TriangleTests") if counters else None,
         "depth": grid("Depth"),
         "build_ms": rc.GetLastBuildTime(),
         "render_ms": rc.GetLastRenderTime(),
         "rebuilt": bool(rc.GetLastRebuilt()),
         "rays": rays,
         "hits": rc.GetNumberOfHits(),
-        "node_visits_per_ray": rc.GetTotalNodeVisits() / max(rays, 1),
-        "triangle_tests_per_ray": rc.GetTotalTriangleTests() / max(rays, 1),
+        "node_visits_per_ray": rc.GetTotalNodeVisits() / max(rays, 1) if counters else None,
+        "triangle_tests_per_ray": rc.GetTotalTriangleTests() / max(rays, 1) if counters else None,
         "caster": rc,
     }
 
 
 def time_frames(frames, methods=("octree", "kdtree", "sah-stack"), size=(800, 800), camera=None,
                 threads: int = 0, triangle_test: str = "moller-trumbore", leaf_scale: float | None = 1.0,
-                progress: bool = True, keep_images: bool = False) -> list:
+                progress: bool = True, keep_images: bool = False, counters: bool = True) -> list:
     """Rebuild and render every frame of an animation with each method: the paper's Table 1.
 
     Every method renders the same frames through the same ray caster (primary rays plus one shadow
@@ -394,6 +399,9 @@ def time_frames(frames, methods=("octree", "kdtree", "sah-stack"), size=(800, 80
         Show a progress bar (tqdm) over the frames.
     keep_images : bool, default: False
         Keep the first frame's render (and heat maps) of every method in ``row["first_frame"]``.
+    counters : bool, default: True
+        Count node visits and triangle tests: every frame is rendered once more with counters
+        on, untimed (the timed render runs without them).
 
     Returns
     -------
@@ -466,9 +474,13 @@ def time_frames(frames, methods=("octree", "kdtree", "sah-stack"), size=(800, 80
                 build = sah_build
             r["build_ms_frames"].append(build)
             r["render_ms_frames"].append(img["render_ms"])
-            r["rays"] += img["rays"]
-            r["visits"] += img["node_visits_per_ray"] * img["rays"]
-            r["tests"] += img["triangle_tests_per_ray"] * img["rays"]
+            if counters:  # the same frame again, counted and untimed (the tree is reused)
+                img = render(work, size=size, tree=key, camera=camera, threads=threads, caster=casters[key],
+                             traversal=m.split("-")[1] if key == "sah" else "stack",
+                             triangle_test=triangle_test, leaf_scale=leaf_scale, counters=True)
+                r["rays"] += img["rays"]
+                r["visits"] += img["node_visits_per_ray"] * img["rays"]
+                r["tests"] += img["triangle_tests_per_ray"] * img["rays"]
             if keep_images and fi == 0:
                 r["first_frame"] = {k: img[k] for k in ("rgb", "node_visits", "triangle_tests")}
     out = []
@@ -478,8 +490,9 @@ def time_frames(frames, methods=("octree", "kdtree", "sah-stack"), size=(800, 80
         b = float(np.mean(r["build_ms_frames"]))
         rm = float(np.mean(r["render_ms_frames"]))
         row = {"method": m, "frames": nf, "triangles": base.GetNumberOfPolys(), "build_ms": b, "render_ms": rm,
-               "frame_ms": b + rm, "node_visits_per_ray": r["visits"] / max(r["rays"], 1),
-               "triangle_tests_per_ray": r["tests"] / max(r["rays"], 1),
+               "frame_ms": b + rm,
+               "node_visits_per_ray": r["visits"] / max(r["rays"], 1) if counters else None,
+               "triangle_tests_per_ray": r["tests"] / max(r["rays"], 1) if counters else None,
                "build_ms_frames": r["build_ms_frames"], "render_ms_frames": r["render_ms_frames"]}
         if "first_frame" in r:
             row["first_frame"] = r["first_frame"]

@@ -519,7 +519,7 @@ struct LeafCall {
 };
 
 // The walk's leaf calls for the segment o + t d, t in [0, 1], stopping after `stopAfter` calls
-// (0: never), with or without stats (without them a tree with a step table walks by the table).
+// (0: never), with or without stats (a compile-time policy of the same walk).
 std::vector<LeafCall> leafCalls(const MatrixTree& t, Vec3 o, Vec3 d, int stopAfter, bool stats) {
   std::vector<LeafCall> calls;
   mtree::TraversalStats st;
@@ -545,8 +545,8 @@ std::vector<LeafCall> leafCalls(const MatrixTree& t, Vec3 o, Vec3 d, int stopAft
 // height and one and two levels deeper.
 TEST_P(RealMeshTree, StepTableWalkIsTheTreeWalk) {
   for (int extra : {0, 1, 2}) {
-    const MatrixTree t = extra == 0 ? MatrixTree(tree_)
-                                    : mtest::buildTree(mesh_, mtest::options(kind_, tree_.height() + extra));
+    MatrixTree t = extra == 0 ? MatrixTree(tree_)
+                              : mtest::buildTree(mesh_, mtest::options(kind_, tree_.height() + extra));
     const int H = t.height();
     uint64_t leafBits = 0;
     for (const uint64_t w : t.leafMasks()) leafBits += std::bitset<64>(w).count();
@@ -590,7 +590,11 @@ TEST_P(RealMeshTree, StepTableWalkIsTheTreeWalk) {
       }
       const int stopAfter = static_cast<int>(rng.below(4)) - 1 > 0 ? static_cast<int>(rng.below(2)) + 1 : 0;
       const std::vector<LeafCall> byTable = leafCalls(t, o, d, stopAfter, false);
+      const std::vector<LeafCall> byTableCounted = leafCalls(t, o, d, stopAfter, true);
+      t.enableStepTable(false);
       const std::vector<LeafCall> byMasks = leafCalls(t, o, d, stopAfter, true);
+      t.enableStepTable(true);
+      EXPECT_TRUE(byTableCounted == byTable) << "height " << H << " ray " << i << ": counting changed the walk";
       calls += byMasks.size();
       for (const LeafCall& c : byMasks) coordsWrong += !c.coordsHoldIt;
       if (byTable != byMasks) {

@@ -4,6 +4,8 @@
 // closed box, so the walk must not lose what the test keeps).
 #include "test_util.h"
 
+#include <string>
+
 #include "mtree/rays/intersect.h"
 #include "mtree/rays/render.h"
 
@@ -40,6 +42,29 @@ mtree::MatrixTree buildTree(const TriangleMesh& mesh, mtree::TreeKind kind) {
   return tree;
 }
 
+// The rays traced as one batch (the renderer's path), first hits or any hits up to tmax[i].
+struct BatchRays {
+  std::vector<Vec3> o, d;
+  std::vector<double> tmin, tmax;
+  explicit BatchRays(const std::vector<Ray>& rays) {
+    for (const Ray& r : rays) {
+      o.push_back(r.o);
+      d.push_back(r.d);
+      tmin.push_back(r.tmin);
+      tmax.push_back(r.tmax);
+    }
+  }
+  mtree::RayBatch batch() const {
+    mtree::RayBatch b;
+    b.o = o.data();
+    b.d = d.data();
+    b.tmin = tmin.data();
+    b.tmax = tmax.data();
+    b.n = o.size();
+    return b;
+  }
+};
+
 class RealMeshWatertight : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(RealMeshWatertight, FirstHitsEqualWatertightBruteForce) {
@@ -48,23 +73,37 @@ TEST_P(RealMeshWatertight, FirstHitsEqualWatertightBruteForce) {
   std::vector<RayHit> ref(rays.size());
 #pragma omp parallel for schedule(dynamic, 16)
   for (int64_t i = 0; i < static_cast<int64_t>(rays.size()); ++i) ref[i] = bruteWatertight(mesh, rays[i]);
+  // The shadow rays: up to just past the hit, which must find something.
+  std::vector<Ray> shadow;
+  for (size_t i = 0; i < rays.size(); ++i)
+    if (ref[i].hit()) {
+      Ray r = rays[i];
+      r.tmax = ref[i].t * (1 + 1e-9) + 1e-300;
+      shadow.push_back(r);
+    }
+  const BatchRays primary(rays), shadows(shadow);
   for (auto kind : {mtree::TreeKind::Octree, mtree::TreeKind::RegularKd}) {
     const mtree::MatrixTree tree = buildTree(mesh, kind);
-    const mtree::MatrixTreeTracer tracer{tree, mesh, TriangleTest::Watertight};
-    int wrong = 0, anyWrong = 0;
-    for (size_t i = 0; i < rays.size(); ++i) {
-      RayHit h;
-      tracer.first(rays[i].o, rays[i].d, rays[i].tmin, rays[i].tmax, h, nullptr);
-      // same triangle, or the same t (a tie on a shared edge goes to the smaller id in both)
-      if (h.prim != ref[i].prim && !(h.hit() && ref[i].hit() && h.t == ref[i].t)) ++wrong;
-      if (ref[i].hit()) {
-        // a shadow ray up to just past the hit must find something; up to just before it, only
-        // if another triangle lies in front (the brute force says so)
-        anyWrong += !tracer.any(rays[i].o, rays[i].d, rays[i].tmin, ref[i].t * (1 + 1e-9) + 1e-300, nullptr);
+    mtree::LeafTriangles payload;
+    payload.build(tree.primitiveIndices().data(), tree.primitiveIndices().size(), mesh, 0);
+    // With the pre-gathered leaf triangles (SIMD) and without them (the mesh through the ids).
+    for (const mtree::LeafTriangles* p : {static_cast<const mtree::LeafTriangles*>(&payload), static_cast<const mtree::LeafTriangles*>(nullptr)}) {
+      SCOPED_TRACE(std::string(mtree::treeKindName(kind)) + (p ? ", payload" : ", mesh"));
+      const mtree::MatrixTreeTracer tracer{tree, mesh, TriangleTest::Watertight, p};
+      std::vector<RayHit> got(rays.size());
+      tracer.first(primary.batch(), got.data(), {});
+      std::vector<uint8_t> blocked(shadow.size());
+      tracer.any(shadows.batch(), blocked.data(), {});
+      int wrong = 0, anyWrong = 0;
+      for (size_t i = 0; i < rays.size(); ++i) {
+        const RayHit& h = got[i];
+        // same triangle, or the same t (a tie on a shared edge goes to the smaller id in both)
+        if (h.prim != ref[i].prim && !(h.hit() && ref[i].hit() && h.t == ref[i].t)) ++wrong;
       }
+      for (uint8_t b : blocked) anyWrong += !b;
+      EXPECT_EQ(wrong, 0) << GetParam();
+      EXPECT_EQ(anyWrong, 0) << GetParam();
     }
-    EXPECT_EQ(wrong, 0) << mtree::treeKindName(kind) << " on " << GetParam();
-    EXPECT_EQ(anyWrong, 0) << mtree::treeKindName(kind) << " on " << GetParam();
   }
 }
 
@@ -85,17 +124,29 @@ TEST(MatrixTreeWatertight, NoRayFallsThroughEdgesOrVerticesOfClosedSpheres) {
     const std::vector<Ray> rays = mtest::edgeAndVertexRays(mesh, sp.center, sp.radius, n, rng);
     for (auto kind : {mtree::TreeKind::Octree, mtree::TreeKind::RegularKd}) {
       const mtree::MatrixTree tree = buildTree(mesh, kind);
-      const mtree::MatrixTreeTracer wt{tree, mesh, TriangleTest::Watertight};
-      const mtree::MatrixTreeTracer mt{tree, mesh, TriangleTest::MollerTrumbore};
-      int wtLeaks = 0, mtLeaks = 0;
-      for (const Ray& r : rays) {
-        RayHit h;
-        wtLeaks += !wt.first(r.o, r.d, 0, kInf, h, nullptr);
-        mtLeaks += !mt.first(r.o, r.d, 0, kInf, h, nullptr);
+      mtree::LeafTriangles payload;
+      payload.build(tree.primitiveIndices().data(), tree.primitiveIndices().size(), mesh, 0);
+      std::vector<Ray> open = rays;
+      for (Ray& r : open) {
+        r.tmin = 0;
+        r.tmax = kInf;
       }
-      EXPECT_EQ(wtLeaks, 0) << mtree::treeKindName(kind) << ", sphere subdiv " << sp.subdiv;
-      std::printf("[ info ] %s, icosphere %d: Moller-Trumbore lets %d of %d rays through, watertight %d\n",
-                  mtree::treeKindName(kind), sp.subdiv, mtLeaks, n, wtLeaks);
+      const BatchRays batch(open);
+      for (const mtree::LeafTriangles* p : {static_cast<const mtree::LeafTriangles*>(&payload), static_cast<const mtree::LeafTriangles*>(nullptr)}) {
+        const mtree::MatrixTreeTracer wt{tree, mesh, TriangleTest::Watertight, p};
+        const mtree::MatrixTreeTracer mt{tree, mesh, TriangleTest::MollerTrumbore, p};
+        std::vector<RayHit> hw(open.size()), hm(open.size());
+        wt.first(batch.batch(), hw.data(), {});
+        mt.first(batch.batch(), hm.data(), {});
+        int wtLeaks = 0, mtLeaks = 0;
+        for (size_t i = 0; i < open.size(); ++i) {
+          wtLeaks += !hw[i].hit();
+          mtLeaks += !hm[i].hit();
+        }
+        EXPECT_EQ(wtLeaks, 0) << mtree::treeKindName(kind) << ", sphere subdiv " << sp.subdiv << (p ? ", payload" : ", mesh");
+        std::printf("[ info ] %s, icosphere %d, %s: Moller-Trumbore lets %d of %d rays through, watertight %d\n",
+                    mtree::treeKindName(kind), sp.subdiv, p ? "payload" : "mesh", mtLeaks, n, wtLeaks);
+      }
     }
   }
 }

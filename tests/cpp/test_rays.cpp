@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include "mtree/rays/batch_trace.h"
+#include "mtree/rays/render.h"
 #include "test_util.h"
 
 namespace {
@@ -190,6 +192,135 @@ TEST_P(RealMeshRays, FirstHitEqualsBruteForce) {
     EXPECT_EQ(anyWrong, 0) << firstAny;
     EXPECT_GT(anyTrue, 0);
     EXPECT_GT(anyFalse, 0);
+  }
+}
+
+// The batch tracers (render()'s path) against one ray at a time. The reference walks each ray
+// alone through MatrixTree::traverseRay (the scalar TableWalk, or the tree walk without a step
+// table) with the scalar leaf test, counting steps and tests; every batch configuration -- each
+// leaf-test width this CPU runs (scalar, SSE2, AVX2) and 1, 2, 4 or 8 rays in flight -- must give
+// the same first hit (triangle, t, u, v to the bit), the same any-hit answer, and the same node
+// visits and triangle tests per ray: the same nodes, the same leaves, the same tests as the ray
+// alone. And the batch's first hits are the brute force's.
+TEST_P(RealMeshRays, BatchWalkIsTheSingleRayWalk) {
+  const std::string rel = GetParam();
+  const mtree::TriangleMesh mesh = mtest::loadRealMesh(rel);
+  const MatrixTree oct = mtest::buildTree(mesh, mtest::options(TreeKind::Octree));
+  const MatrixTree kd = mtest::buildTree(mesh, mtest::options(TreeKind::RegularKd));
+  const MatrixTree* trees[2] = {&oct, &kd};
+  const int n = 20000;
+  const std::vector<Ray> rays = makeRays(mesh, trees, n, mtest::seedFor(rel, 17));
+  std::vector<Vec3> o(n), d(n);
+  std::vector<double> tmin(n), tmax(n), shadowMax(n);
+  for (int i = 0; i < n; ++i) {
+    o[i] = rays[i].o;
+    d[i] = rays[i].d;
+    tmin[i] = rays[i].tmin;
+    tmax[i] = rays[i].tmax;
+  }
+  const mtest::BruteForce bf(mesh);
+  const std::vector<RayHit> ref = bf.firstAll(rays);
+  // Shadow-ray intervals: up to the first hit (half of them just before it), else the ray's own.
+  for (int i = 0; i < n; ++i)
+    shadowMax[i] = ref[i].hit() ? (i % 2 ? ref[i].t : std::nextafter(ref[i].t, -1.0)) : tmax[i];
+  std::vector<mtree::Simd> widths = {mtree::Simd::Scalar};
+  if (mtree::simdSupported() >= mtree::Simd::Sse2) widths.push_back(mtree::Simd::Sse2);
+  if (mtree::simdSupported() >= mtree::Simd::Avx2) widths.push_back(mtree::Simd::Avx2);
+  for (const MatrixTree* tree : trees) {
+    SCOPED_TRACE(mtree::treeKindName(tree->kind()));
+    mtree::LeafTriangles payload;
+    payload.build(tree->primitiveIndices().data(), tree->primitiveIndices().size(), mesh, 0);
+    for (auto test : {mtree::TriangleTest::MollerTrumbore, mtree::TriangleTest::Watertight}) {
+      SCOPED_TRACE(mtree::triangleTestName(test));
+      // One ray at a time.
+      std::vector<RayHit> one(n);
+      std::vector<uint8_t> oneAny(n);
+      std::vector<uint32_t> oneVisits(n), oneTests(n), oneAnyVisits(n), oneAnyTests(n);
+      const uint32_t* ids = tree->primitiveIndices().data();
+      for (int i = 0; i < n; ++i) {
+        const auto walk = [&](auto testTag, double t1, bool any, RayHit& hit, uint32_t& visits, uint32_t& tests) {
+          using Leaf = mtree::LeafTest<mtree::Simd::Scalar, decltype(testTag)::value>;
+          mtree::LeafRay ray;
+          ray.set<decltype(testTag)::value>(o[i], d[i], tmin[i]);
+          mtree::TraversalStats st;
+          hit = RayHit{};
+          hit.t = t1;
+          bool found = false;
+          tests = 0;
+          tree->traverseRay(
+              o[i], d[i], tmin[i], t1,
+              [&](const uint32_t* leaf, uint32_t count, double, double tExit) {
+                const uint32_t begin = static_cast<uint32_t>(leaf - ids);
+                if (any) {
+                  uint32_t tested = 0;
+                  found = Leaf::any(payload, begin, count, ray, t1, tested);
+                  tests += tested;
+                  return found;
+                }
+                Leaf::first(payload, ids, begin, count, ray, hit);
+                tests += count;
+                return hit.hit() && hit.t <= tExit;
+              },
+              &st);
+          visits = static_cast<uint32_t>(st.nodeVisits);
+          if (!hit.hit()) hit.t = std::numeric_limits<double>::infinity();
+          return found;
+        };
+        RayHit unused;
+        if (test == mtree::TriangleTest::Watertight) {
+          using Tag = std::integral_constant<mtree::TriangleTest, mtree::TriangleTest::Watertight>;
+          walk(Tag{}, tmax[i], false, one[i], oneVisits[i], oneTests[i]);
+          oneAny[i] = walk(Tag{}, shadowMax[i], true, unused, oneAnyVisits[i], oneAnyTests[i]);
+        } else {
+          using Tag = std::integral_constant<mtree::TriangleTest, mtree::TriangleTest::MollerTrumbore>;
+          walk(Tag{}, tmax[i], false, one[i], oneVisits[i], oneTests[i]);
+          oneAny[i] = walk(Tag{}, shadowMax[i], true, unused, oneAnyVisits[i], oneAnyTests[i]);
+        }
+      }
+      if (test == mtree::TriangleTest::MollerTrumbore) {
+        mtest::HitComparison cmp;
+        for (int i = 0; i < n; ++i) cmp.add(one[i], ref[i], rays[i], size_t(i));
+        EXPECT_EQ(cmp.mismatches, 0u) << "first: " << cmp.firstMismatch;
+      }
+      for (const mtree::Simd simd : widths) {
+        for (const int inFlight : {1, 2, 4, 8}) {
+          SCOPED_TRACE(std::string(mtree::simdName(simd)) + ", " + std::to_string(inFlight) + " in flight");
+          mtree::TraceTuning tuning;
+          tuning.simd = simd;
+          tuning.inFlight = inFlight;
+          const mtree::MatrixTreeTracer tracer{*tree, mesh, test, &payload, tuning};
+          mtree::RayBatch b;
+          b.o = o.data();
+          b.d = d.data();
+          b.tmin = tmin.data();
+          b.tmax = tmax.data();
+          b.n = size_t(n);
+          std::vector<RayHit> got(n);
+          std::vector<uint32_t> visits(n, 0), tests(n, 0);
+          tracer.first(b, got.data(), mtree::RayCounters{visits.data(), tests.data()});
+          // Without counters: the same hits.
+          std::vector<RayHit> plain(n);
+          tracer.first(b, plain.data(), {});
+          b.tmax = shadowMax.data();
+          std::vector<uint8_t> blocked(n);
+          std::vector<uint32_t> anyVisits(n, 0), anyTests(n, 0);
+          tracer.any(b, blocked.data(), mtree::RayCounters{anyVisits.data(), anyTests.data()});
+          uint64_t differ = 0, countsDiffer = 0, anyDiffer = 0;
+          for (int i = 0; i < n; ++i) {
+            const RayHit& g = got[i];
+            const RayHit& w = one[i];
+            differ += !(g.prim == w.prim && g.t == w.t && g.u == w.u && g.v == w.v);
+            differ += !(plain[i].prim == g.prim && plain[i].t == g.t);
+            countsDiffer += visits[i] != oneVisits[i] || tests[i] != oneTests[i];
+            anyDiffer += blocked[i] != oneAny[i];
+            countsDiffer += anyVisits[i] != oneAnyVisits[i] || anyTests[i] != oneAnyTests[i];
+          }
+          EXPECT_EQ(differ, 0u);
+          EXPECT_EQ(countsDiffer, 0u);
+          EXPECT_EQ(anyDiffer, 0u);
+        }
+      }
+    }
   }
 }
 

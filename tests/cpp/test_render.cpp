@@ -80,9 +80,21 @@ TEST(Render, SphereCoverageDepthAndCounters) {
   for (TreeKind kind : kKinds) {
     SCOPED_TRACE(mtree::treeKindName(kind));
     const MatrixTree tree = mtest::buildTree(sphere, mtest::options(kind));
-    const mtree::MatrixTreeTracer tracer{tree, sphere};
+    mtree::LeafTriangles payload;
+    payload.build(tree.primitiveIndices().data(), tree.primitiveIndices().size(), sphere, 0);
+    const mtree::MatrixTreeTracer tracer{tree, sphere, mtree::TriangleTest::MollerTrumbore, &payload};
     RenderOptions opt;
+    opt.counters = true;
     const RenderResult img = mtree::render(tracer, sphere, mtest::meshBounds(sphere), cam, opt);
+    // Without counters (the walks compiled without them): the same image, and no counts.
+    RenderOptions uncounted = opt;
+    uncounted.counters = false;
+    const RenderResult plain = mtree::render(tracer, sphere, mtest::meshBounds(sphere), cam, uncounted);
+    EXPECT_TRUE(plain.rgb == img.rgb && plain.hitPrim == img.hitPrim && plain.depth == img.depth);
+    EXPECT_EQ(plain.stats.nodeVisits + plain.stats.primTests, 0u);
+    uint64_t plainCounts = 0;
+    for (size_t p = 0; p < plain.nodeVisits.size(); ++p) plainCounts += plain.nodeVisits[p] + plain.primTests[p];
+    EXPECT_EQ(plainCounts, 0u);
     ASSERT_EQ(img.width, W);
     ASSERT_EQ(img.height, Hh);
     ASSERT_EQ(img.rgb.size(), size_t(W) * Hh * 3);
@@ -197,7 +209,14 @@ TEST(Render, MatchesBruteForceTracerWithShadows) {
   for (TreeKind kind : kKinds) {
     SCOPED_TRACE(mtree::treeKindName(kind));
     const MatrixTree tree = mtest::buildTree(scene, mtest::options(kind));
-    const RenderResult img = mtree::render(mtree::MatrixTreeTracer{tree, scene}, scene, sceneBox, cam, opt);
+    mtree::LeafTriangles payload;
+    payload.build(tree.primitiveIndices().data(), tree.primitiveIndices().size(), scene, 0);
+    // The pre-gathered leaf triangles (the default path) and the mesh through the ids.
+    for (const mtree::LeafTriangles* pl : {static_cast<const mtree::LeafTriangles*>(&payload),
+                                           static_cast<const mtree::LeafTriangles*>(nullptr)}) {
+    SCOPED_TRACE(pl ? "payload" : "mesh");
+    const RenderResult img = mtree::render(
+        mtree::MatrixTreeTracer{tree, scene, mtree::TriangleTest::MollerTrumbore, pl}, scene, sceneBox, cam, opt);
     EXPECT_EQ(img.hits, ref.hits);
     EXPECT_EQ(img.shadowRays, ref.shadowRays);
     uint64_t primDiffers = 0, depthDiffers = 0, colourDiffers = 0;
@@ -217,6 +236,7 @@ TEST(Render, MatchesBruteForceTracerWithShadows) {
     std::printf("[render] %s: hits %llu, shadow rays %llu, pixels whose triangle differs (same depth) %llu\n",
                 mtree::treeKindName(kind), (unsigned long long)img.hits, (unsigned long long)img.shadowRays,
                 (unsigned long long)primDiffers);
+    }
   }
 }
 

@@ -1008,6 +1008,7 @@ TEST(SahTracer, RendersLikeTheMatrixTree) {
   cam.eye = box.center() + Vec3(0.1, 0.05, 1.0) * (2.2 * mtree::norm(box.extent()));
   cam.width = cam.height = 96;
   mtree::RenderOptions opt;
+  opt.counters = true;
   const mtree::RenderResult ref = mtree::render(mtree::MatrixTreeTracer{mt, mesh}, mesh, box, cam, opt);
   for (const Config& c : kConfigs)
     for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {

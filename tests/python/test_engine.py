@@ -380,8 +380,8 @@ def test_surface_rays_match_brute_force(tree):
 def test_render_matrix_tree_and_sah_see_the_same_picture():
     pts, tris = sphere_surface(48, 32)
     cam = dict(width=64, height=48, eye=[0.5, 0.8, 4.0], target=[0, 0, 0], up=[0, 1, 0], view_angle=35.0)
-    mt = surface_tree(pts, tris).render(**cam)
-    sah = surface_tree(pts, tris, engine.SahTree).render(**cam)
+    mt = surface_tree(pts, tris).render(**cam, counters=True)
+    sah = surface_tree(pts, tris, engine.SahTree).render(**cam, counters=True)
     assert mt["rgb"].shape == (48, 64, 3) and mt["rgb"].dtype == np.uint8
     np.testing.assert_array_equal(mt["cell"], sah["cell"])
     np.testing.assert_array_equal(mt["depth"], sah["depth"])

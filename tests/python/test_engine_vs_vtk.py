@@ -176,8 +176,8 @@ def test_surface_tree_rays_and_render_equal_the_vtk_modules(bunny):
     np.testing.assert_array_equal(t, rt)
     assert visits == mt.last_query_counters["node_visits"] and tests == mt.last_query_counters["triangle_tests"]
     cam = [(0.1, 0.25, 0.45), (-0.02, 0.1, 0.0), (0.0, 1.0, 0.0), 30.0]
-    img = st.render(96, 64, eye=cam[0], target=cam[1], up=cam[2], view_angle=cam[3])
-    ref = matrixtree.render(bunny, size=(96, 64), tree="kdtree", camera=cam, leaf_scale=2.0)
+    img = st.render(96, 64, eye=cam[0], target=cam[1], up=cam[2], view_angle=cam[3], counters=True)
+    ref = matrixtree.render(bunny, size=(96, 64), tree="kdtree", camera=cam, leaf_scale=2.0, counters=True)
     np.testing.assert_array_equal(img["rgb"][::-1], ref["rgb"])
     np.testing.assert_array_equal(img["node_visits"][::-1], ref["node_visits"])
     assert img["hits"] == ref["hits"] > 0

@@ -117,7 +117,8 @@ def test_render_sphere_matches_analytic_disc():
     s.SetPhiResolution(256)
     s.Update()
     dist, fov, w = 6.0, 30.0, 200
-    img = matrixtree.render(s.GetOutput(), size=(w, w), camera=[(0, 0, dist), (0, 0, 0), (0, 1, 0), fov])
+    img = matrixtree.render(s.GetOutput(), size=(w, w), camera=[(0, 0, dist), (0, 0, 0), (0, 1, 0), fov],
+                            counters=True)
     hit = np.isfinite(img["depth"])
     # Projected disc: the sphere subtends a cone of half-angle asin(r / dist).
     half = math.tan(math.asin(1.0 / dist)) / math.tan(math.radians(fov / 2)) * w / 2
@@ -183,7 +184,8 @@ def test_sah_baseline_sees_what_the_matrix_tree_sees(traversal):
     bunny = matrixtree.read_mesh(os.path.join(scenes.data_dir(), "meshes", "bunny.ply"))
     ref = matrixtree.render(bunny, size=(96, 80), tree="octree")
     for test in ("moller-trumbore", "watertight"):
-        sah = matrixtree.render(bunny, size=(96, 80), tree="sah", traversal=traversal, triangle_test=test)
+        sah = matrixtree.render(bunny, size=(96, 80), tree="sah", traversal=traversal, triangle_test=test,
+                                counters=True)
         assert _same_hits(sah, ref) == 0
         assert sah["hits"] == ref["hits"] > 1000
         # same shading wherever the hits agree (shadow rays included): at most a pixel or two

@@ -67,6 +67,7 @@ void MatrixTree::buildWalkCaches(int threads) {
   denseLevels_ = 0;
   stepLevel_.clear();
   stepBlock_.clear();
+  stepBox_.clear();
   if (empty_) return;
   // Dense bits of the upper levels, from the root down while they stay no larger than the
   // level's block-sparse bytes (levels only grow going down).
@@ -145,13 +146,21 @@ void MatrixTree::buildStepTable(int threads) {
   uint64_t leaves = 0;
   for (const uint64_t w : leafMask_) leaves += static_cast<uint64_t>(__builtin_popcountll(w));
   if (2 * leaves > uint64_t(nb) * 512) return;
-  bool uniform = true;
-  for (int l = 0; l <= H; ++l)
+  for (int l = 0; l <= H; ++l) {
     for (int a = 0; a < 3; ++a) {
       stepShift_[l][a] = logDims_[H][a] - logDims_[l][a];
-      uniform = uniform && stepShift_[l][a] == H - l;
+      stepMask_[l][a] = ~((1 << stepShift_[l][a]) - 1);
     }
-  stepUniform_ = uniform;
+    stepMask_[l][3] = -1;
+  }
+  // The walk computes pointer-matrix indices with shifts: a power of two of cells per axis.
+  for (int a = 0; a < 2; ++a) {
+    const int cells = int(leaves_.desc().ptrDims[a]);
+    int lg = 0;
+    while ((1 << lg) < cells) ++lg;
+    if ((1 << lg) != cells) return;
+    stepLogPtr_[a] = lg;
+  }
   // Per block, nested fills of the leaf bits: fill[k] has a cell's bit set when its ancestor at
   // level H - k holds a leaf (k = 1 .. blockLevels_, each a union of aligned groups of cells:
   // the children's footprints merged along the axes split between the two levels). An empty
@@ -211,6 +220,83 @@ void MatrixTree::buildStepTable(int threads) {
     blocks[p] = static_cast<uint32_t>((ptr[p] != MT_NULL ? uint64_t(ptr[p]) : uint64_t(nb) + blockEmpty_[p]) * 512);
   stepLevel_.swap(bytes);
   stepBlock_.swap(blocks);
+  buildStepBoxes();
+}
+
+void MatrixTree::buildStepBoxes() {
+  // Block units, one byte per coordinate: the pointer matrix has at most 256 cells per axis.
+  const MtSparseDesc& d = leaves_.desc();
+  const int n[3] = {d.ptrDims[0], d.ptrDims[1], d.ptrDims[2]};
+  const std::vector<uint32_t>& ptr = leaves_.pointers();
+  if (n[0] > 256 || n[1] > 256 || n[2] > 256) {  // no boxes, and so no table
+    stepLevel_.clear();
+    stepBlock_.clear();
+    return;
+  }
+  stepBox_.assign(ptr.size(), 0);
+  auto pack = [](const int lo[3], const int hi[3]) {
+    uint64_t v = 0;
+    for (int a = 0; a < 3; ++a) v |= (uint64_t(lo[a]) << (8 * a)) | (uint64_t(hi[a]) << (8 * a + 32));
+    return v;
+  };
+  auto at = [&](int x, int y, int z) { return (size_t(z) * size_t(n[1]) + size_t(y)) * size_t(n[0]) + size_t(x); };
+  // Allocated blocks per box in O(1): a summed-volume table over the pointer matrix.
+  std::vector<uint32_t> sum;
+  const size_t sx = size_t(n[0]) + 1, sy = size_t(n[1]) + 1;
+  auto S = [&](int x, int y, int z) -> uint32_t& { return sum[(size_t(z) * sy + size_t(y)) * sx + size_t(x)]; };
+  sum.assign(sx * sy * (size_t(n[2]) + 1), 0);
+  for (int z = 1; z <= n[2]; ++z)
+    for (int y = 1; y <= n[1]; ++y)
+      for (int x = 1; x <= n[0]; ++x)
+        S(x, y, z) = uint32_t(ptr[at(x - 1, y - 1, z - 1)] != MT_NULL) + S(x - 1, y, z) + S(x, y - 1, z) +
+                     S(x, y, z - 1) - S(x - 1, y - 1, z) - S(x - 1, y, z - 1) - S(x, y - 1, z - 1) +
+                     S(x - 1, y - 1, z - 1);
+  auto allocated = [&](const int lo[3], const int hi[3]) {  // blocks allocated in [lo, hi]
+    const int x0 = lo[0], y0 = lo[1], z0 = lo[2], x1 = hi[0] + 1, y1 = hi[1] + 1, z1 = hi[2] + 1;
+    return S(x1, y1, z1) - S(x0, y1, z1) - S(x1, y0, z1) - S(x1, y1, z0) + S(x0, y0, z1) + S(x0, y1, z0) +
+           S(x1, y0, z0) - S(x0, y0, z0);
+  };
+  for (int z = 0; z < n[2]; ++z)
+    for (int y = 0; y < n[1]; ++y)
+      for (int x = 0; x < n[0]; ++x) {
+        const size_t p = at(x, y, z);
+        const int c[3] = {x, y, z};
+        if (ptr[p] != MT_NULL) {
+          stepBox_[p] = pack(c, c);
+          continue;
+        }
+        // The largest empty node containing the block, in block units (its levels are above the
+        // block's, H - 3). Every block of that node gets the same box: computed at the node's
+        // low corner, the first of its blocks in this order, and copied for the others.
+        const int level = blockEmpty_[p];
+        int lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+          const int s = stepShift_[level][a] - 3;
+          lo[a] = (c[a] >> s) << s;
+          hi[a] = lo[a] + (1 << s) - 1;
+        }
+        const size_t first = at(lo[0], lo[1], lo[2]);
+        if (first != p) {
+          stepBox_[p] = stepBox_[first];
+          continue;
+        }
+        // Grown one slab of blocks at a time, the six faces in turn, while the slab holds no
+        // allocated block: a maximal empty box (not the largest one: a greedy choice).
+        for (bool grew = true; grew;) {
+          grew = false;
+          for (int f = 0; f < 6; ++f) {
+            const int a = f >> 1;
+            const bool upward = f & 1;
+            if (upward ? hi[a] + 1 >= n[a] : lo[a] == 0) continue;
+            int slo[3] = {lo[0], lo[1], lo[2]}, shi[3] = {hi[0], hi[1], hi[2]};
+            slo[a] = shi[a] = upward ? hi[a] + 1 : lo[a] - 1;
+            if (allocated(slo, shi) != 0) continue;
+            (upward ? hi[a] : lo[a]) = slo[a];
+            grew = true;
+          }
+        }
+        stepBox_[p] = pack(lo, hi);
+      }
 }
 
 void MatrixTree::buildBlockEmpty() {

@@ -141,8 +141,8 @@ class MatrixTree {
   /// word read from a small array that stays in cache. Levels below use the block-sparse bytes.
   int denseLevels() const { return denseLevels_; }
   size_t walkCacheBytes() const {
-    return (leafMask_.size() + levelBits_.size()) * sizeof(uint64_t) + blockEmpty_.size() + stepLevel_.size() +
-           stepBlock_.size() * sizeof(uint32_t);
+    return (leafMask_.size() + levelBits_.size() + stepBox_.size()) * sizeof(uint64_t) + blockEmpty_.size() +
+           stepLevel_.size() + stepBlock_.size() * sizeof(uint32_t);
   }
   /// Whether traverseRay() steps by the step table (see buildStepTable()): built with the other
   /// walk caches where nodeOf() is available and at least half the bottom-level cells of the
@@ -280,12 +280,18 @@ class MatrixTree {
   /// rays starting inside, and rays along node faces: the exit axis advances by an integer step,
   /// the other coordinates are clamped into the current node, so it never skips or revisits a
   /// node.
-  /// With the step table (hasStepTable(), enabled) and no stats the nodes come from the table, with the
-  /// same arithmetic, so fn sees the same calls with the same arguments either way (test_matrix_tree
-  /// StepTableWalkIsTheTreeWalk); with stats the walk classifies each cell as the paper does
-  /// and counts those node visits.
+  /// With the step table (hasStepTable(), enabled) the nodes come from the table (TableWalk), with
+  /// the same arithmetic as the walk that classifies each cell from the masks and the levels, so
+  /// fn sees the same calls with the same arguments either way (test_matrix_tree
+  /// StepTableWalkIsTheTreeWalk). Stats are a compile-time policy of the same walk: with `st` the
+  /// table walk counts one node visit (its byte) and one cell per step, without it the counters
+  /// are compiled out; the walk without the table counts its probes as the paper does.
   template <class LeafFn>
   void traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& fn, TraversalStats* st) const;
+
+  /// The walk by the step table one step at a time, for traverseRay() and for walks that keep
+  /// several rays in flight (rays/batch_trace.h): see TableWalk below.
+  class TableWalk;
 
  private:
   template <class Prims>
@@ -344,10 +350,19 @@ class MatrixTree {
   static constexpr uint8_t kStepLeaf = 0x80;
   std::vector<uint8_t> stepLevel_;
   std::vector<uint32_t> stepBlock_;
+  // Empty boxes (TableWalk): per leaf pointer-matrix cell whose block is absent, a box of absent
+  // blocks containing it, in block units: bytes 0-2 its low corner (x, y, z), bytes 4-6 its high
+  // corner (inclusive); the cell itself where the block exists. Grown from the largest empty node
+  // containing the block (buildStepBoxes()), so never smaller than that node.
+  std::vector<uint64_t> stepBox_;
+  /// Fills stepBox_ (buildStepTable() calls it).
+  void buildStepBoxes();
   // Per level, the bottom-level cells per node along each axis as a shift (logDims[H] -
-  // logDims[l]); stepUniform_: it is H - l on every axis (an octree with a cubic root).
+  // logDims[l]), and ~(2^shift - 1): a bottom-level coordinate ANDed with it is the first
+  // bottom-level cell of its node at that level (TableWalk::step).
   std::array<std::array<int, 3>, MT_MAX_LEVELS> stepShift_{};
-  bool stepUniform_ = false;
+  std::array<std::array<int, 4>, MT_MAX_LEVELS> stepMask_{};
+  int stepLogPtr_[2] = {0, 0};  // log2 of the leaf pointer matrix's cells along x and y
   bool stepTableOn_ = true;
   /// Fills the step table after buildBlockEmpty() (leaves it empty where nodeOf() is not
   /// available or the blocks are mostly leaves).
@@ -563,6 +578,58 @@ MT_ALWAYS_INLINE int MatrixTree::bottomCell(const int L[3], MtLeafRange& r, Trav
 
 // ---------------------------------------------------------------------------------------------
 namespace detail {
+/// A ray's set-up for the walks: per axis the reciprocal direction (no division per step; 0 on an
+/// axis the ray does not move along: d = 0, or a reciprocal that is not finite), +inf in `never`
+/// on such an axis (so every axis has an exit plane), which face it leaves by, and [t0, t1], the
+/// interval clipped to the root box by a slab test without branches on the slab order (many rays
+/// of a frame miss the root box, and this is all they cost). False: nothing to walk.
+struct RayClip {
+  double inv[3], never[3];
+  bool up[3];
+  double t0, t1;
+  MT_ALWAYS_INLINE bool clip(const Box& root, Vec3 o, Vec3 d, double tmin, double tmax) {
+    if (!isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return false;
+    if (d.x == 0 && d.y == 0 && d.z == 0) return false;
+    bool moves[3];
+    for (int a = 0; a < 3; ++a) {
+      inv[a] = d[a] != 0 ? 1.0 / d[a] : 0.0;
+      moves[a] = std::fabs(inv[a]) < std::numeric_limits<double>::infinity() && d[a] != 0;
+      if (!moves[a]) inv[a] = 0.0;
+      up[a] = d[a] > 0;
+      never[a] = moves[a] ? 0.0 : std::numeric_limits<double>::infinity();
+    }
+    t0 = tmin;
+    t1 = tmax;
+    for (int a = 0; a < 3; ++a) {
+      if (!moves[a]) {
+        if (o[a] < root.lo[a] || o[a] > root.hi[a]) return false;
+        continue;
+      }
+      const double tn = (root.lo[a] - o[a]) * inv[a], tf = (root.hi[a] - o[a]) * inv[a];
+      t0 = std::max(t0, std::min(tn, tf));
+      t1 = std::min(t1, std::max(tn, tf));
+    }
+    return t0 <= t1;
+  }
+};
+/// cellIndexNonNegative(x, lo, hi) without branches: the same value for every x, NaN included
+/// (below lo or NaN: lo; from hi up: hi; else truncation, which is floor there).
+MT_ALWAYS_INLINE int clampCell(double x, int lo, int hi) {
+  double c = x >= lo ? x : double(lo);
+  c = c >= hi ? double(hi) : c;
+  return static_cast<int>(c);
+}
+/// The nearest of three exit planes (ties: the lower axis), or -1 if the ray interval ends first
+/// (tExit = t1). Written without branches on the comparisons, which a step cannot predict.
+MT_ALWAYS_INLINE int nearestExit(double tx, double ty, double tz, double t1, double& tExit) {
+  int ax = ty < tx ? 1 : 0;
+  double tm = ty < tx ? ty : tx;
+  ax = tz < tm ? 2 : ax;
+  tm = tz < tm ? tz : tm;
+  const bool ends = !(tm < t1);
+  tExit = ends ? t1 : tm;
+  return ends ? -1 : ax;
+}
 /// The ray walk's t of the plane at integer cell coordinate `edge` (cells of extent cs) for a
 /// ray whose origin is at o from the root's corner, with reciprocal direction inv; `never` is
 /// +inf on an axis the ray does not move along (inv = 0 there), else 0. One expression for both
@@ -584,35 +651,191 @@ MT_ALWAYS_INLINE bool callLeaf(LeafFn& fn, const uint32_t* ids, uint32_t count, 
 }
 }  // namespace detail
 
+/// One ray's place in the walk by the step table (MatrixTree::TableWalk): its constants, in the
+/// root box's frame (origin at the root's lo corner), and the cell it is in.
+struct TableRay {
+  double o[3], d[3], inv[3], never[3];
+  bool up[3];
+  double t1;     // end of the ray's interval, clipped to the root box
+  double te;     // where the ray enters the current cell
+  int L[3];      // the current bottom-level cell
+  uint32_t e;    // its entry in the step table
+  uint32_t p;    // its leaf pointer-matrix cell (its block's)
+  int stepsLeft; // the walk's bound on steps (3 x the cells along the axes + 8): never reached by
+                 // a walk that advances, which every walk does
+};
+
+/// What one step found: the node the ray was in (a leaf when `leaf`: its step-table entry `here`
+/// is its index in the leaf level's storage), the ray's interval in it, the node's bottom-level
+/// cell the ray was in, and whether the ray goes on to a next node (already in the TableRay).
+struct TableStep {
+  uint32_t here;
+  bool leaf, next;
+  double tEnter, tExit;
+  int L[3];
+};
+
+/// The walk by the step table (buildStepTable()): one step reads the byte of the ray's
+/// bottom-level cell, which gives the leaf or the largest empty node containing it (nodeOf()'s
+/// answer); where that node is an absent block's (or larger), the step crosses the block's empty
+/// box instead (stepBox_: a box of absent blocks grown from that node, which a ray crosses in one
+/// step where the octree would take several). It computes the region's exit face as the tree walk does (detail::planeCrossing,
+/// nearestExit: ((c + 1) << s) csH is (c + 1) cs_l exactly, the cell sizes being the root's
+/// extent times powers of two), and the next cell: an integer step on the exit axis, the other
+/// axes from the exit point clamped into the node (so round-off cannot skip a node). No branch
+/// depends on the tree: a step is the same instructions for a leaf and for any empty node, so
+/// several rays' steps can be in flight at once (rays/batch_trace.h) without mispredictions
+/// between them. The next cell's table entry and leaf range are asked for (prefetch) before the
+/// caller tests this step's leaf.
+class MatrixTree::TableWalk {
+ public:
+  /// What a step reads: the step table (bytes, per-pointer-cell block offsets), the leaf ranges,
+  /// the per-level masks, and the bottom level's shape. The leaf level's pointer matrix has a
+  /// power of two of cells along each axis (the level's 2^logDim cells over blocks of 8, or one),
+  /// so a cell's pointer is ((z >> 3) << (lx + ly)) | ((y >> 3) << lx) | (x >> 3).
+  struct Tables {
+    const uint8_t* bytes;
+    const uint32_t* blocks;
+    const MtLeafRange* ranges;
+    const std::array<int, 4>* mask;  // stepMask_: lane 3 is -1
+    const uint64_t* boxes;           // stepBox_
+    int boxLevel;                    // the block level: a node at it or above is an absent block's
+    Box root;
+    Vec3 invLeaf, cs;
+    int dim[3];
+    int logPx, logPy;
+    int maxSteps;
+  };
+  /// Only where tree.hasStepTable().
+  explicit MT_ALWAYS_INLINE TableWalk(const MatrixTree& t) {
+    k_.bytes = t.stepLevel_.data();
+    k_.blocks = t.stepBlock_.data();
+    k_.ranges = t.leaves_.data().data();
+    k_.mask = t.stepMask_.data();
+    k_.boxes = t.stepBox_.data();
+    k_.boxLevel = t.height_ - t.blockLevels_;
+    k_.root = t.root_;
+    k_.invLeaf = t.invLeaf_;
+    k_.cs = t.cellSize_[t.height_];
+    for (int a = 0; a < 3; ++a) k_.dim[a] = t.dim(t.height_, a);
+    k_.logPx = t.stepLogPtr_[0];
+    k_.logPy = t.stepLogPtr_[1];
+    k_.maxSteps = 3 * (k_.dim[0] + k_.dim[1] + k_.dim[2]) + 8;
+  }
+  const Tables& tables() const { return k_; }
+  /// Sets r up for the ray o + t d, t in [tmin, tmax]; false if it has no cell to walk (it misses
+  /// the root box, or bad input: non-finite, zero direction, tmin > tmax or NaN).
+  MT_ALWAYS_INLINE bool start(Vec3 o, Vec3 d, double tmin, double tmax, TableRay& r) const {
+    detail::RayClip c;
+    if (!c.clip(k_.root, o, d, tmin, tmax)) return false;
+    for (int a = 0; a < 3; ++a) {
+      r.o[a] = o[a] - k_.root.lo[a];
+      r.d[a] = d[a];
+      r.inv[a] = c.inv[a];
+      r.never[a] = c.never[a];
+      r.up[a] = c.up[a];
+    }
+    r.t1 = c.t1;
+    r.te = c.t0;
+    for (int a = 0; a < 3; ++a)
+      r.L[a] = cellIndexNonNegative((r.o[a] + r.d[a] * c.t0) * k_.invLeaf[a], 0, k_.dim[a] - 1);
+    r.p = pointer(r.L[0], r.L[1], r.L[2]);
+    r.e = entry(r.p, r.L[0], r.L[1], r.L[2]);
+    r.stepsLeft = k_.maxSteps;
+    return true;
+  }
+  MT_ALWAYS_INLINE TableStep step(TableRay& r) const {
+    const uint8_t v = k_.bytes[r.e];
+    const int level = v & ~kStepLeaf;
+    // The region the ray crosses, in bottom-level cells [lo, hi] per axis: the node, L with its
+    // low bits cleared (lo) or set (hi); in an absent block, the block's empty box.
+    const int* m = k_.mask[level].data();
+    const uint64_t box = k_.boxes[r.p];
+    const bool inBox = level <= k_.boxLevel;
+    int lo[3], hi[3];
+    double tx[3];
+    for (int a = 0; a < 3; ++a) {
+      const int bl = int((box >> (8 * a)) & 0xFF) << 3, bh = (int((box >> (8 * a + 32)) & 0xFF) << 3) | 7;
+      lo[a] = inBox ? bl : r.L[a] & m[a];
+      hi[a] = inBox ? bh : r.L[a] | ~m[a];
+      tx[a] = detail::planeCrossing(r.up[a] ? hi[a] + 1 : lo[a], k_.cs[a], r.o[a], r.inv[a], r.never[a]);
+    }
+    TableStep out;
+    const int ax = detail::nearestExit(tx[0], tx[1], tx[2], r.t1, out.tExit);
+    out.tExit = std::max(out.tExit, r.te);
+    out.tEnter = r.te;
+    out.here = r.e;
+    out.leaf = (v & kStepLeaf) != 0;
+    int n[3];
+    for (int a = 0; a < 3; ++a) {
+      out.L[a] = r.L[a];
+      // A bottom-level node has lo = hi: the clamp keeps its coordinate.
+      n[a] = detail::clampCell((r.o[a] + r.d[a] * out.tExit) * k_.invLeaf[a], lo[a], hi[a]);
+      n[a] = ax == a ? (r.up[a] ? hi[a] + 1 : lo[a] - 1) : n[a];
+    }
+    bool next = (ax >= 0) & (unsigned(n[0]) < unsigned(k_.dim[0])) & (unsigned(n[1]) < unsigned(k_.dim[1])) &
+                (unsigned(n[2]) < unsigned(k_.dim[2])) & (--r.stepsLeft > 0);
+    out.next = next;
+    if (next) {
+      for (int a = 0; a < 3; ++a) r.L[a] = n[a];
+      r.p = pointer(n[0], n[1], n[2]);
+      r.e = entry(r.p, n[0], n[1], n[2]);
+      __builtin_prefetch(k_.ranges + r.e);
+    }
+    r.te = out.tExit;
+    return out;
+  }
+  /// The primitive ids of the leaf at step-table entry `here` (a leaf's: TableStep::leaf).
+  MtLeafRange leafRange(uint32_t here) const { return k_.ranges[here]; }
+  /// The leaf pointer-matrix cell of bottom-level cell (x, y, z) (in range).
+  MT_ALWAYS_INLINE uint32_t pointer(int x, int y, int z) const {
+    return (uint32_t(z >> 3) << (k_.logPx + k_.logPy)) | (uint32_t(y >> 3) << k_.logPx) | uint32_t(x >> 3);
+  }
+  /// The step-table entry of bottom-level cell (x, y, z), p its pointer-matrix cell.
+  MT_ALWAYS_INLINE uint32_t entry(uint32_t p, int x, int y, int z) const {
+    return k_.blocks[p] + ((uint32_t(z & 7) << 6) | (uint32_t(y & 7) << 3) | uint32_t(x & 7));
+  }
+
+ private:
+  Tables k_;
+};
+
 template <class LeafFn>
 void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& fn,
                              TraversalStats* st) const {
-  if (empty_ || !isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return;
-  if (d.x == 0 && d.y == 0 && d.z == 0) return;
-  // Per axis: the reciprocal direction (no division per step) and which face the ray leaves by.
-  // An axis whose reciprocal is not finite (d = 0, or subnormal) does not move.
-  double inv[3];
-  int up[3];
-  bool moves[3];
-  for (int a = 0; a < 3; ++a) {
-    inv[a] = d[a] != 0 ? 1.0 / d[a] : 0.0;
-    moves[a] = std::fabs(inv[a]) < std::numeric_limits<double>::infinity() && d[a] != 0;
-    if (!moves[a]) inv[a] = 0.0;
-    up[a] = d[a] > 0 ? 1 : 0;
-  }
-  // The root box's slab test with those reciprocals, without branches on the slab order: many
-  // rays of a frame miss the root box, and this is all they cost.
-  double t0 = tmin, t1 = tmax;
-  for (int a = 0; a < 3; ++a) {
-    if (!moves[a]) {
-      if (o[a] < root_.lo[a] || o[a] > root_.hi[a]) return;
-      continue;
+  if (empty_) return;
+  if (stepTableOn_ && hasStepTable()) {
+    const TableWalk w(*this);
+    TableRay r;
+    if (!w.start(o, d, tmin, tmax, r)) return;
+    auto walk = [&](auto counting) {
+      for (;;) {
+        const TableStep s = w.step(r);
+        if constexpr (decltype(counting)::value) {
+          ++st->nodeVisits;
+          ++st->cells;
+        }
+        if (s.leaf) {
+          const MtLeafRange lr = w.leafRange(s.here);
+          if (detail::callLeaf(fn, prims_.data() + lr.begin, lr.end - lr.begin, s.tEnter, s.tExit, s.L[0], s.L[1],
+                               s.L[2]))
+            return;
+        }
+        if (!s.next) return;
+      }
+    };
+    if (st) {
+      walk(std::true_type{});
+    } else {
+      walk(std::false_type{});
     }
-    const double tn = (root_.lo[a] - o[a]) * inv[a], tf = (root_.hi[a] - o[a]) * inv[a];
-    t0 = std::max(t0, std::min(tn, tf));
-    t1 = std::min(t1, std::max(tn, tf));
+    return;
   }
-  if (!(t0 <= t1)) return;
+  detail::RayClip clip;
+  if (!clip.clip(root_, o, d, tmin, tmax)) return;
+  const double* inv = clip.inv;
+  const double* never = clip.never;
+  const double t0 = clip.t0, t1 = clip.t1;
   const int H = height_;
   const Vec3 ol = o - root_.lo;  // local coordinates: the root box starts at 0
   int L[3];
@@ -622,109 +845,18 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
       L[a] = cellIndexNonNegative(p[a] * invLeaf_[a], 0, dim(H, a) - 1);
   }
   double tEnter = t0;
-  // +inf on the axes the ray does not move along, so every axis has an exit plane.
-  double never[3];
-  for (int a = 0; a < 3; ++a) never[a] = moves[a] ? 0.0 : std::numeric_limits<double>::infinity();
   // The far face of the node with integer coordinate c and extent cs[a] on axis a: where the
   // ray leaves it along that axis (+inf on an axis it does not move along).
-  auto exitPlane = [&](int a, int c, const Vec3& cs) { return detail::planeCrossing(c + up[a], cs[a], ol[a], inv[a], never[a]); };
-  // The nearest of the three far faces (ties: the lower axis), or -1 if the ray interval ends
-  // first (tExit = t1). Written without branches on the comparisons, which a step cannot predict.
-  auto nearestExit = [&](double tx, double ty, double tz, double& tExit) -> int {
-    int ax = ty < tx ? 1 : 0;
-    double tm = ty < tx ? ty : tx;
-    ax = tz < tm ? 2 : ax;
-    tm = tz < tm ? tz : tm;
-    const bool ends = !(tm < t1);
-    tExit = ends ? t1 : tm;
-    return ends ? -1 : ax;
+  auto exitPlane = [&](int a, int c, const Vec3& cs) {
+    return detail::planeCrossing(c + (clip.up[a] ? 1 : 0), cs[a], ol[a], inv[a], never[a]);
   };
   // The exit plane of the node with integer coordinates c and extent cs.
   auto exitOf = [&](const int c[3], const Vec3& cs, double& tExit) -> int {
-    return nearestExit(exitPlane(0, c[0], cs), exitPlane(1, c[1], cs), exitPlane(2, c[2], cs), tExit);
+    return detail::nearestExit(exitPlane(0, c[0], cs), exitPlane(1, c[1], cs), exitPlane(2, c[2], cs), t1, tExit);
   };
   const int maxSteps = 3 * (dim(H, 0) + dim(H, 1) + dim(H, 2)) + 8;
   const Vec3 csH = cellSize_[H];
   const int dimH[3] = {dim(H, 0), dim(H, 1), dim(H, 2)};
-  if (!st && stepTableOn_ && hasStepTable()) {
-    // The walk below, with each node read from the step table: the node containing L is its
-    // ancestor at the byte's level, whose bottom-level cells span [lo, hi] per axis. Its exit
-    // planes are the walk's own (((c + 1) << s) csH is (c + 1) cs_l exactly: the cell sizes are
-    // the root's extent times powers of two), and so are the next cell (an integer step on the
-    // exit axis; the others from the exit point, clamped into the node) and the leaf calls. One
-    // byte and one pointer per step, against nodeOf()'s and bottomCell()'s branches on the
-    // block's masks (docs/bench_locators.md, "The step table").
-    const MtSparseDesc& sd = leaves_.desc();
-    const size_t px = size_t(sd.ptrDims[0]), py = size_t(sd.ptrDims[1]);
-    const uint32_t* blocks = stepBlock_.data();
-    const uint8_t* bytes = stepLevel_.data();
-    const MtLeafRange* ranges = leaves_.data().data();
-    const uint32_t* primIds = prims_.data();
-    auto walkTable = [&](auto uniform) {
-      // The walk's state in locals (registers), not in the arrays the lambdas share.
-      int Lx = L[0], Ly = L[1], Lz = L[2];
-      double te = tEnter;
-      const double ox = ol.x, oy = ol.y, oz = ol.z, ix = inv[0], iy = inv[1], iz = inv[2];
-      const double nx = never[0], ny = never[1], nz = never[2], cx = csH.x, cy = csH.y, cz = csH.z;
-      const bool ux = up[0] != 0, uy = up[1] != 0, uz = up[2] != 0;
-      auto entry = [&](int x, int y, int z) {
-        return size_t(blocks[(size_t(z >> 3) * py + size_t(y >> 3)) * px + size_t(x >> 3)]) +
-               ((uint32_t(z & 7) << 6) | (uint32_t(y & 7) << 3) | uint32_t(x & 7));
-      };
-      size_t e = entry(Lx, Ly, Lz);
-      for (int step = 0; step < maxSteps; ++step) {
-        const uint8_t v = bytes[e];
-        const int level = v & ~kStepLeaf;
-        int sx, sy, sz;
-        if constexpr (decltype(uniform)::value) {
-          sx = sy = sz = H - level;
-        } else {
-          sx = stepShift_[level][0];
-          sy = stepShift_[level][1];
-          sz = stepShift_[level][2];
-        }
-        const int lx = (Lx >> sx) << sx, ly = (Ly >> sy) << sy, lz = (Lz >> sz) << sz;
-        const int hx = lx + (1 << sx) - 1, hy = ly + (1 << sy) - 1, hz = lz + (1 << sz) - 1;
-        double tExit;
-        const int ax = nearestExit(detail::planeCrossing(ux ? hx + 1 : lx, cx, ox, ix, nx),
-                                   detail::planeCrossing(uy ? hy + 1 : ly, cy, oy, iy, ny),
-                                   detail::planeCrossing(uz ? hz + 1 : lz, cz, oz, iz, nz), tExit);
-        tExit = std::max(tExit, te);
-        // The next cell first: its table entry and leaf range are then on their way while fn
-        // tests this leaf's primitives (the range's load was the walk's largest stall).
-        const size_t here = e;
-        const int hereX = Lx, hereY = Ly, hereZ = Lz;
-        bool inside = ax >= 0;
-        if (inside) {
-          if (level != H) {
-            Lx = cellIndexNonNegative((ox + d.x * tExit) * invLeaf_.x, lx, hx);
-            Ly = cellIndexNonNegative((oy + d.y * tExit) * invLeaf_.y, ly, hy);
-            Lz = cellIndexNonNegative((oz + d.z * tExit) * invLeaf_.z, lz, hz);
-          }
-          if (ax == 0) Lx = ux ? hx + 1 : lx - 1;
-          if (ax == 1) Ly = uy ? hy + 1 : ly - 1;
-          if (ax == 2) Lz = uz ? hz + 1 : lz - 1;
-          inside = (unsigned(Lx) < unsigned(dimH[0])) & (unsigned(Ly) < unsigned(dimH[1])) & (unsigned(Lz) < unsigned(dimH[2]));
-          if (inside) {
-            e = entry(Lx, Ly, Lz);
-            __builtin_prefetch(ranges + e);
-          }
-        }
-        if (v & kStepLeaf) {
-          const MtLeafRange r = ranges[here];
-          if (detail::callLeaf(fn, primIds + r.begin, r.end - r.begin, te, tExit, hereX, hereY, hereZ)) return;
-        }
-        if (!inside) return;
-        te = tExit;
-      }
-    };
-    if (stepUniform_) {
-      walkTable(std::true_type{});
-    } else {
-      walkTable(std::false_type{});
-    }
-    return;
-  }
   const bool fast = fastNodeOf();
   NodeRef n = fast ? nodeOf(L, st) : locate(L, 0, H + 1, st);
   int step = 0;
@@ -737,13 +869,13 @@ void MatrixTree::traverseRay(Vec3 o, Vec3 d, double tmin, double tmax, LeafFn&& 
       // bottomCell read, written back only when the run ends), the step is branch-free, and
       // bottomCell is inlined (1.3-1.7% of a surface ray, locator_ab-style alternation).
       int Lx = L[0], Ly = L[1], Lz = L[2];
-      const int sx = up[0] ? 1 : -1, sy = up[1] ? 1 : -1, sz = up[2] ? 1 : -1;
+      const int sx = clip.up[0] ? 1 : -1, sy = clip.up[1] ? 1 : -1, sz = clip.up[2] ? 1 : -1;
       double tx = exitPlane(0, Lx, csH), ty = exitPlane(1, Ly, csH), tz = exitPlane(2, Lz, csH);
       bool larger = false;  // n became a larger empty node
       for (; step < maxSteps; ++step) {
         if (st) ++st->cells;
         double tExit;
-        const int ax = nearestExit(tx, ty, tz, tExit);
+        const int ax = detail::nearestExit(tx, ty, tz, t1, tExit);
         tExit = std::max(tExit, tEnter);
         if (n.exists &&
             detail::callLeaf(fn, prims_.data() + n.range.begin, n.range.end - n.range.begin, tEnter, tExit, Lx, Ly, Lz))

@@ -17,7 +17,8 @@ namespace mtree {
 // render() (mtree/rays/render.h) with the rays traced on the OpenCL device in two batches: the same
 // camera rays, light, eps offset and shading. A shadow ray is the segment render() traces, from
 // q = p + n*eps to q + (light - p): direction (light - p), t in [0, 1] (the batch kernel takes one
-// t range for all rays). nodeVisits/primTests per pixel stay 0 (the kernels give sums only).
+// t range for all rays). nodeVisits/primTests per pixel stay 0 (the kernels give sums only); the
+// sums only with RenderOptions::counters (without, the kernels are given no counter buffer).
 /// DeviceTracer: ocl::Tracer, or any device tracer with its intersectFirst / intersectAny
 /// (ocl::SplitTreeTracer, opencl_trees.h).
 template <class DeviceTracer>
@@ -44,7 +45,7 @@ inline RenderResult renderOpenCL(DeviceTracer& tracer, const TriangleMesh& mesh,
   uint64_t v1 = 0, c1 = 0, v2 = 0, c2 = 0;
   auto tb = std::chrono::steady_clock::now();
   tracer.intersectFirst(o.data(), d.data(), npix, 0.0, std::numeric_limits<double>::infinity(), t.data(),
-                        prim.data(), &v1, &c1);
+                        prim.data(), opt.counters ? &v1 : nullptr, opt.counters ? &c1 : nullptr);
   if (traceMs) *traceMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tb).count();
   std::vector<double> diffuse(npix, 0.0), so, sd;
   std::vector<size_t> shadowPix;
@@ -68,7 +69,8 @@ inline RenderResult renderOpenCL(DeviceTracer& tracer, const TriangleMesh& mesh,
   std::vector<uint8_t> blocked(shadowPix.size(), 0);
   tb = std::chrono::steady_clock::now();
   if (!shadowPix.empty())
-    tracer.intersectAny(so.data(), sd.data(), shadowPix.size(), 0.0, 1.0, blocked.data(), &v2, &c2);
+    tracer.intersectAny(so.data(), sd.data(), shadowPix.size(), 0.0, 1.0, blocked.data(), opt.counters ? &v2 : nullptr,
+                        opt.counters ? &c2 : nullptr);
   if (traceMs) *traceMs += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - tb).count();
   for (size_t k = 0; k < shadowPix.size(); ++k)
     if (blocked[k]) diffuse[shadowPix[k]] = 0;

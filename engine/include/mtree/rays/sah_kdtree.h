@@ -238,26 +238,11 @@ class SahKdTree {
   SahBuildStats stats_;
 };
 
-/// The SAH kd-tree as a tracer of render.h.
-struct SahTracer {
-  const SahKdTree& tree;
-  const TriangleMesh& mesh;
-  SahTraversal traversal = SahTraversal::Stack;
-  TriangleTest test = TriangleTest::MollerTrumbore;
-  int shortStack = 3;
-  bool first(Vec3 o, Vec3 d, double tmin, double tmax, RayHit& h, TraversalStats* st) const {
-    return tree.intersectFirst(mesh, o, d, tmin, tmax, h, traversal, test, st, shortStack);
-  }
-  bool any(Vec3 o, Vec3 d, double tmin, double tmax, TraversalStats* st) const {
-    return tree.intersectAny(mesh, o, d, tmin, tmax, traversal, test, st, shortStack);
-  }
-};
-
 // ---------------------------------------------------------------------------------------------
 // Implementation of the traversals (templates: the visitor's leaf loop inlines).
 // ---------------------------------------------------------------------------------------------
 
-inline bool SahKdTree::setup(Vec3 o, Vec3 d, double tmin, double tmax, RayCtx& r) const {
+MT_ALWAYS_INLINE bool SahKdTree::setup(Vec3 o, Vec3 d, double tmin, double tmax, RayCtx& r) const {
   if (nodes_.empty() || !isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return false;
   if (d.x == 0 && d.y == 0 && d.z == 0) return false;
   double t0 = tmin, t1 = tmax;
