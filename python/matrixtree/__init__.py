@@ -1,9 +1,12 @@
 """MatrixTree: implicit, block-sparse matrix trees (Andrysco & Tricoche 2011) for ray casting
 and spatial queries on meshes that change every frame, with VTK and pyvista adapters.
 
-The heavy lifting is done by the VTK classes of the compiled ``matrixtree_vtk`` package (built
-against Debian's VTK 9.1 by ``scripts/setup.sh``); this package converts numpy arrays and
-meshes and delegates, it never loops over points or rays in Python.
+The heavy lifting is done in C++ by one of two compiled extensions, chosen once when the package
+is imported (``matrixtree.EXTENSION`` says which): the VTK classes of ``matrixtree_vtk`` (built
+against Debian's VTK 9.1 by ``scripts/setup.sh``) where that module imports, else the VTK-free
+engine of ``matrixtree_engine`` (what ``pip install .`` builds, beside pip's ``vtk`` and
+``pyvista`` wheels). Both give the same answers; this package converts numpy arrays and meshes
+and delegates, it never loops over points or rays in Python.
 
 Examples
 --------
@@ -14,7 +17,7 @@ Examples
 True
 """
 
-from matrixtree_vtk import vtkMatrixTreeVersion
+from matrixtree._backend import VTK_MODULE, engine
 
 from matrixtree import scenes
 from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb, time_frames, tree_mesh
@@ -22,6 +25,15 @@ from matrixtree.grids import read_grid
 from matrixtree.locator import CellLocator, cached_memory, release_cached_memory
 from matrixtree.volume import default_transfer_functions, frame_camera, read_volume, render_volume
 
-__version__ = vtkMatrixTreeVersion.GetVersion()
+if VTK_MODULE:
+    from matrixtree_vtk import vtkMatrixTreeVersion
 
-__all__ = ["CellLocator", "MatrixTree", "cached_memory", "release_cached_memory", "read_grid", "read_mesh", "render", "save_heatmap", "save_rgb", "scenes", "time_frames", "tree_mesh", "__version__"]
+    __version__ = vtkMatrixTreeVersion.GetVersion()
+    EXTENSION = "matrixtree_vtk"
+else:
+    __version__ = engine().__version__
+    EXTENSION = "matrixtree_engine"
+
+__all__ = ["CellLocator", "EXTENSION", "MatrixTree", "cached_memory", "read_grid", "read_mesh",
+           "release_cached_memory", "render", "save_heatmap", "save_rgb", "scenes", "time_frames", "tree_mesh",
+           "__version__"]

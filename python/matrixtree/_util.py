@@ -46,6 +46,29 @@ def points3(a, name: str) -> np.ndarray:
     return arr
 
 
+def segments(origins, directions, ends, length: float):
+    """Segment starts and ends as (N, 3) arrays: ``origins`` to ``ends``, or to
+    ``origins + length * directions`` (exactly one of the two; ValueError otherwise)."""
+    o = points3(origins, "origins")
+    if (directions is None) == (ends is None):
+        raise ValueError("give exactly one of directions and ends")
+    e = points3(ends, "ends") if ends is not None else o + float(length) * points3(directions, "directions")
+    if e.shape != o.shape:
+        raise ValueError(f"origins {o.shape} and ends/directions {e.shape} differ in shape")
+    return o, np.ascontiguousarray(e)
+
+
+def bounds6(bounds) -> list:
+    """``(xmin, xmax, ymin, ymax, zmin, zmax)`` as six floats; ValueError otherwise."""
+    try:
+        b = np.asarray(bounds, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        b = np.zeros(0)
+    if b.shape != (6,) or np.isnan(b).any():
+        raise ValueError(f"bounds must be (xmin, xmax, ymin, ymax, zmin, zmax), got {bounds!r}")
+    return b.tolist()
+
+
 def vtk_points(arr: np.ndarray) -> vtkPoints:
     """A ``vtkPoints`` holding a copy of an (N, 3) array (its dtype kept: float64 stays double)."""
     pts = vtkPoints()

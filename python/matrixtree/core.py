@@ -1,4 +1,9 @@
-"""Thin numpy-facing wrappers over the VTK classes ``vtkMatrixTree`` and ``vtkMatrixTreeRayCaster``."""
+"""Thin numpy-facing wrappers over the VTK classes ``vtkMatrixTree`` and ``vtkMatrixTreeRayCaster``.
+
+Where the VTK module does not import, ``MatrixTree``, ``render`` and ``tree_mesh`` are the
+engine extension's (``matrixtree._engine``, bound at the end of this module), with the same
+arguments and answers.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +14,12 @@ from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray, vtkIntArray
 from vtkmodules.vtkCommonDataModel import vtkDataSet, vtkPolyData
 
-from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
+from matrixtree._backend import VTK_MODULE
 
+if VTK_MODULE:
+    from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
+
+from matrixtree import _meshstate
 from matrixtree._util import check_backend, existing_file, points3, read_by_extension, tree_type, vtk_points
 
 
@@ -80,6 +89,16 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     return result
 
 
+def _check_tree_settings(height, block_size, leaf_scale) -> None:
+    """ValueError for a MatrixTree height, block size or leaf scale out of range."""
+    if not (isinstance(height, (int, np.integer)) and 0 <= height <= 63):
+        raise ValueError(f"height must be an integer in [0, 63] (0 = automatic), got {height!r}")
+    if block_size not in (1, 2, 4, 8, 16, 32):
+        raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
+    if not leaf_scale > 0:
+        raise ValueError(f"leaf_scale must be > 0, got {leaf_scale!r}")
+
+
 def _as_polydata(mesh) -> vtkPolyData:
     if isinstance(mesh, vtkPolyData):
         return mesh
@@ -138,12 +157,7 @@ class MatrixTree:
                  backend: str = "cpu", device: str | None = None):
         self.mesh = _as_polydata(mesh)
         backend_id = _backend(backend)
-        if not (isinstance(height, (int, np.integer)) and 0 <= height <= 63):
-            raise ValueError(f"height must be an integer in [0, 63] (0 = automatic), got {height!r}")
-        if block_size not in (1, 2, 4, 8, 16, 32):
-            raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
-        if not leaf_scale > 0:
-            raise ValueError(f"leaf_scale must be > 0, got {leaf_scale!r}")
+        _check_tree_settings(height, block_size, leaf_scale)
         self._tree = vtkMatrixTree()
         self._tree.SetDataSet(self.mesh)
         self._tree.SetTreeType(tree_type(tree))
@@ -163,7 +177,10 @@ class MatrixTree:
         return self._tree
 
     def build(self) -> "MatrixTree":
-        """(Re)build the tree now, e.g. after the mesh's points moved. Returns self."""
+        """(Re)build the tree now. Queries rebuild by themselves when the mesh changed (points
+        moved, even in place through a numpy view; cells replaced; see matrixtree._meshstate).
+        Returns self."""
+        self._state = _meshstate.fingerprint(self.mesh)
         if not self._tree.Build():
             if self._tree.GetBackend() == vtkMatrixTree.OPENCL:
                 raise RuntimeError("building the matrix tree with the OpenCL backend failed: no OpenCL "
@@ -172,6 +189,10 @@ class MatrixTree:
             raise RuntimeError("building the matrix tree failed: the mesh has non-finite coordinates "
                                "or bad connectivity (see the VTK error above)")
         return self
+
+    def _sync(self) -> None:
+        if _meshstate.fingerprint(self.mesh) != self._state:
+            self.build()
 
     def stats(self) -> dict:
         """Build statistics: height, triangles, leaves, references, bytes (the tree with its leaf
@@ -216,6 +237,7 @@ class MatrixTree:
             or the largest empty node containing it (exists = 0); level -1 outside the tree.
         """
         p = points3(points, "points")
+        self._sync()
         out = vtkIntArray()
         self._tree.FindLeaves(numpy_to_vtk(p, deep=False), out)
         return vtk_to_numpy(out).reshape(-1, 5).copy()
@@ -239,6 +261,7 @@ class MatrixTree:
         d = points3(directions, "directions")
         if o.shape != d.shape:
             raise ValueError(f"origins {o.shape} and directions {d.shape} must have the same shape")
+        self._sync()
         t = vtkDoubleArray()
         c = vtkIdTypeArray()
         self._tree.IntersectRays(numpy_to_vtk(o, deep=False), numpy_to_vtk(d, deep=False), float(t_max), t, c)
@@ -253,6 +276,23 @@ class MatrixTree:
 
 _TRAVERSALS = {"restart": 0, "stack": 1, "shortstack": 2}
 _TESTS = {"moller-trumbore": 0, "mt": 0, "watertight": 1}
+
+
+def _check_render_settings(size, traversal: str, triangle_test: str, camera, tree: str, backend: str):
+    """(width, height, camera) of :func:`render`'s arguments; ValueError for a bad size,
+    traversal, triangle test or camera, or the SAH baseline asked for on another backend."""
+    if tree == "sah" and backend != "cpu":
+        raise ValueError("the SAH kd-tree baseline runs on the CPU only: use backend='cpu'")
+    w, h = int(size[0]), int(size[1])
+    if w < 1 or h < 1:
+        raise ValueError(f"size must be two positive integers, got {size!r}")
+    if traversal not in _TRAVERSALS:
+        raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
+    if triangle_test not in _TESTS:
+        raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
+    if camera is not None and len(camera) not in (3, 4):
+        raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
+    return w, h, camera
 
 
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
@@ -312,17 +352,9 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     (48, 64, 3)
     """
     pd = _as_polydata(mesh)
-    w, h = int(size[0]), int(size[1])
-    if w < 1 or h < 1:
-        raise ValueError(f"size must be two positive integers, got {size!r}")
-    if traversal not in _TRAVERSALS:
-        raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
-    if triangle_test not in _TESTS:
-        raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
+    w, h, camera = _check_render_settings(size, traversal, triangle_test, camera, tree, backend)
     rc = caster if caster is not None else vtkMatrixTreeRayCaster()
     if tree == "sah":
-        if backend != "cpu":
-            raise ValueError("the SAH kd-tree baseline runs on the CPU only: use backend='cpu'")
         rc.SetAcceleratorToSAHKdTree()
         rc.SetSAHTraversal(_TRAVERSALS[traversal])
     else:
@@ -342,8 +374,6 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     if camera is None:
         rc.AutoCameraOn()
     else:
-        if len(camera) not in (3, 4):
-            raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
         rc.AutoCameraOff()
         rc.SetPosition(*map(float, camera[0]))
         rc.SetFocalPoint(*map(float, camera[1]))
@@ -520,6 +550,23 @@ def save_heatmap(counts: np.ndarray, path: str | os.PathLike, vmax: float, cmap:
     return save_rgb(rgb, path)
 
 
+def _level_range(levels):
+    """(lo, hi, leaves_only) of :func:`tree_mesh`'s ``levels``: hi = -1 is the leaf level;
+    ``levels=-1`` asks for the leaves alone (0, -1, True). ValueError for anything else."""
+    if levels is None:
+        return 0, -1, False
+    if isinstance(levels, (int, np.integer)):
+        lo, hi = int(levels), int(levels)
+    else:
+        lo, hi = (int(v) for v in levels)
+    if lo < 0 and hi == lo:
+        return 0, -1, True
+    if lo < 0 or (hi < lo and hi != -1):
+        raise ValueError(f"levels must be None, a level >= 0 (or -1 for the leaves), or (lo, hi) with "
+                         f"0 <= lo <= hi (hi = -1: the leaves); got {levels!r}")
+    return lo, hi, False
+
+
 def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_overlap: bool = False):
     """The matrix tree over a mesh or grid as boxes, for plotting (one voxel per existing node).
 
@@ -564,23 +611,9 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     rep.SetTreeType(tree_type(tree))
     rep.SetHeight(int(height))
     rep.SetExactOverlap(bool(exact_overlap))
-    if levels is None:
-        lo, hi = 0, -1
-    elif isinstance(levels, (int, np.integer)):
-        lo, hi = int(levels), int(levels)
-    else:
-        lo, hi = (int(v) for v in levels)
-    if lo < 0 and hi == lo:  # levels=-1: the leaves only
-        rep.SetMinLevel(0)
-        rep.SetMaxLevel(-1)
-        leaves_only = True
-    else:
-        if lo < 0 or (hi < lo and hi != -1):
-            raise ValueError(f"levels must be None, a level >= 0 (or -1 for the leaves), or (lo, hi) with "
-                             f"0 <= lo <= hi (hi = -1: the leaves); got {levels!r}")
-        rep.SetMinLevel(lo)
-        rep.SetMaxLevel(hi)
-        leaves_only = False
+    lo, hi, leaves_only = _level_range(levels)
+    rep.SetMinLevel(lo)
+    rep.SetMaxLevel(hi)
     rep.SetInputData(mesh)
     rep.Update()
     out = pv.wrap(rep.GetOutput())
@@ -589,3 +622,11 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
         out = out.extract_cells(np.flatnonzero(out.cell_data["level"] == h))
         out.field_data["tree_height"] = [h]
     return out
+
+
+if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process
+    from matrixtree import _engine  # noqa: E402
+
+    for _name in ("MatrixTree", "render", "tree_mesh"):
+        _engine.adopt_docs(globals()[_name], getattr(_engine, _name))
+    from matrixtree._engine import MatrixTree, render, tree_mesh  # noqa: E402, F811

@@ -4,18 +4,26 @@ A numpy front end to ``vtkMatrixTreeLocator``: one call answers a whole array of
 segments, OpenMP-parallel in C++ (never a Python loop per point). Answers equal the locator's
 one-point calls, which match VTK's own locators. ``backend="opencl"`` moves point location
 (``locate``) onto an OpenCL device, with the same answers.
+
+Where the VTK module does not import, ``CellLocator``, ``cached_memory`` and
+``release_cached_memory`` are the engine extension's (``matrixtree._engine``, bound at the end of
+this module; CPU only, linear cells), with the same arguments and answers.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdList, vtkIdTypeArray, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkDataSet
 
-from matrixtree_vtk import vtkMatrixTreeLocator
+from matrixtree._backend import VTK_MODULE
 
-from matrixtree._util import VtkErrors, check_backend, points3, tree_type, vtk_points
+if VTK_MODULE:
+    from matrixtree_vtk import vtkMatrixTreeLocator
+
+from matrixtree import _meshstate
+from matrixtree._util import VtkErrors, bounds6, check_backend, points3, segments, tree_type, vtk_points
 
 __all__ = ["CellLocator", "cached_memory", "release_cached_memory"]
 
@@ -40,6 +48,20 @@ def release_cached_memory() -> int:
     return int(vtkMatrixTreeLocator.ReleaseCachedMemory())
 
 
+def _segment_meets_boxes(a, b, lo, hi) -> np.ndarray:
+    """Whether the segment a -> b meets each box [lo, hi] (the slab test, closed boxes)."""
+    d = b - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (lo - a) / d, (hi - a) / d
+    near, far = np.minimum(t0, t1), np.maximum(t0, t1)
+    # An axis the segment runs parallel to: inside the slab for all t, or for none.
+    par = d == 0
+    inside = (a >= lo) & (a <= hi)
+    near = np.where(par, np.where(inside, -np.inf, np.inf), near)
+    far = np.where(par, np.where(inside, np.inf, -np.inf), far)
+    return np.maximum(near.max(axis=1), 0.0) <= np.minimum(far.min(axis=1), 1.0)
+
+
 class CellLocator:
     """Point location, ray (segment) casting and closest points on the cells of a mesh.
 
@@ -60,11 +82,17 @@ class CellLocator:
         finishes what the kernel leaves to VTK; the tree is built on the CPU and copied to the
         device once per build. Cell ids are identical to ``"cpu"``, pcoords and weights equal.
         Without an OpenCL device ``locate`` raises RuntimeError (no silent fallback).
-        ``trace`` and ``closest_points`` always run on the CPU.
+        The other queries always run on the CPU.
     device : str, optional
         OpenCL device selector (``backend="opencl"`` only): ``"P:D"`` (platform P, device D), a
         device number, or part of a device name; default: ``$MATRIXTREE_OPENCL_DEVICE``, else the
         first GPU, else the first device.
+
+    Notes
+    -----
+    Every query first checks whether the data set changed since the tree was built (points
+    moved, even in place through a numpy view; cells or points replaced; ``Modified()`` called:
+    see ``matrixtree._meshstate``) and rebuilds the tree if so; ``builds`` counts the builds.
 
     See Also
     --------
@@ -102,7 +130,19 @@ class CellLocator:
                 self.vtk_locator.SetOpenCLDevice(str(device))
         self.backend = backend
         self.vtk_locator.SetDataSet(dataset)
-        self.vtk_locator.BuildLocator()
+        self.builds = 0
+        self._build()
+
+    def _build(self) -> None:
+        state = _meshstate.fingerprint(self.dataset)
+        self.vtk_locator.ForceBuildLocator()
+        self._state = state
+        self.builds += 1
+
+    def _sync(self) -> None:
+        """Rebuild first if the data set changed since the last build (matrixtree._meshstate)."""
+        if _meshstate.fingerprint(self.dataset) != self._state:
+            self._build()
 
     def locate(self, points, *, return_pcoords: bool = False, return_weights: bool = False):
         """The cell containing each point (VTK's FindCell), or -1.
@@ -142,6 +182,7 @@ class CellLocator:
         ids = vtkIdTypeArray()
         pc = vtkDoubleArray() if return_pcoords else None
         w = vtkDoubleArray() if return_weights else None
+        self._sync()
         with VtkErrors(self.vtk_locator) as errors:
             self.vtk_locator.FindCells(vtk_points(p), ids, pc, w)
         if errors.messages:
@@ -190,12 +231,8 @@ class CellLocator:
         >>> bool(abs(x[0, 0] - 0.5) < 1e-2), bool(ids[1] == -1 and np.isinf(t[1]))
         (True, True)
         """
-        o = points3(origins, "origins")
-        if (directions is None) == (ends is None):
-            raise ValueError("give exactly one of directions and ends")
-        e = points3(ends, "ends") if ends is not None else o + float(length) * points3(directions, "directions")
-        if e.shape != o.shape:
-            raise ValueError(f"origins {o.shape} and ends/directions {e.shape} differ in shape")
+        o, e = segments(origins, directions, ends, length)
+        self._sync()
         t, ids, x = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
         self.vtk_locator.IntersectSegments(numpy_to_vtk(o, deep=True), numpy_to_vtk(e, deep=True),
                                            float(tolerance), t, ids, x)
@@ -228,13 +265,127 @@ class CellLocator:
         (True, 9.0)
         """
         p = points3(points, "points")
+        self._sync()
         cp, ids, d2 = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
         self.vtk_locator.FindClosestPoints(vtk_points(p), cp, ids, d2)
         return (vtk_to_numpy(cp).reshape(-1, 3).copy(), vtk_to_numpy(ids).astype(np.int64, copy=True),
                 vtk_to_numpy(d2).copy())
+
+    def trace_all(self, origins, directions=None, *, ends=None, length: float = 1.0):
+        """Every cell each segment meets, sorted along it (VTK's ``IntersectWithLine`` with a point
+        and an id list; tolerance 0).
+
+        Parameters
+        ----------
+        origins, directions, ends, length
+            The segments, as in :meth:`trace`.
+
+        Returns
+        -------
+        offsets : numpy.ndarray, shape (n + 1,)
+            Segment ``i``'s hits are entries ``offsets[i]:offsets[i + 1]`` of the arrays below.
+        t : numpy.ndarray
+            Hit parameters along their segments, in [0, 1], ascending per segment.
+        cell_ids : numpy.ndarray
+            The cells hit, each once per segment (at its first meeting).
+        points : numpy.ndarray, shape (offsets[-1], 3)
+            Hit points.
+
+        Examples
+        --------
+        >>> from vtkmodules.vtkFiltersSources import vtkSphereSource
+        >>> s = vtkSphereSource(); s.SetThetaResolution(32); s.SetPhiResolution(32); s.Update()
+        >>> off, t, ids, x = CellLocator(s.GetOutput()).trace_all([[-2, 0.01, 0.02]], ends=[[2, 0.01, 0.02]])
+        >>> off.tolist(), bool(x[0, 0] < 0 < x[1, 0])
+        ([0, 2], True)
+        """
+        o, e = segments(origins, directions, ends, length)
+        self._sync()
+        # The VTK class answers one segment per call; the engine extension's path batches them.
+        hit_points, hit_ids = vtkPoints(), vtkIdList()
+        hit_points.SetDataTypeToDouble()
+        counts, ids, xs = np.zeros(len(o), np.int64), [], []
+        for i in range(len(o)):
+            self.vtk_locator.IntersectWithLine(o[i], e[i], hit_points, hit_ids)
+            counts[i] = hit_ids.GetNumberOfIds()
+            if counts[i]:
+                ids.append([hit_ids.GetId(k) for k in range(counts[i])])
+                xs.append(vtk_to_numpy(hit_points.GetData()).astype(np.float64))
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        ids = np.concatenate(ids).astype(np.int64) if ids else np.zeros(0, np.int64)
+        x = np.concatenate(xs).reshape(-1, 3) if xs else np.zeros((0, 3))
+        seg = np.repeat(np.arange(len(o)), counts)
+        d = e[seg] - o[seg]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.einsum("ij,ij->i", x - o[seg], d) / np.einsum("ij,ij->i", d, d)
+        return offsets, t, ids, x
+
+    def cells_within_bounds(self, bounds) -> np.ndarray:
+        """The cells whose bounding boxes meet ``bounds`` (VTK's ``FindCellsWithinBounds``),
+        ascending.
+
+        Parameters
+        ----------
+        bounds : sequence of 6 float
+            ``(xmin, xmax, ymin, ymax, zmin, zmax)``.
+
+        Returns
+        -------
+        numpy.ndarray of int64
+
+        Examples
+        --------
+        >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); plane.Update()   # 16 squares
+        >>> CellLocator(plane.GetOutput()).cells_within_bounds([-0.5, -0.3, -0.5, -0.3, -1, 1]).tolist()
+        [0]
+        """
+        b = bounds6(bounds)
+        self._sync()
+        out = vtkIdList()
+        self.vtk_locator.FindCellsWithinBounds(b, out)
+        return np.sort(np.array([out.GetId(k) for k in range(out.GetNumberOfIds())], dtype=np.int64))
+
+    def cells_along_line(self, pointa, pointb, tolerance: float = 0.0) -> np.ndarray:
+        """The cells whose bounding boxes (grown by ``tolerance``) the segment from ``pointa``
+        to ``pointb`` crosses (VTK's ``FindCellsAlongLine``), ascending.
+
+        Examples
+        --------
+        >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); plane.Update()   # 16 squares
+        >>> CellLocator(plane.GetOutput()).cells_along_line([-0.4, -0.4, -1], [-0.4, -0.4, 1]).tolist()
+        [0]
+        """
+        a, b = points3(pointa, "pointa")[0], points3(pointb, "pointb")[0]
+        tol = float(tolerance)
+        self._sync()
+        # The VTK class lists the cells of the leaves the segment crosses (without a tolerance);
+        # the answer is those of them whose boxes, grown by the tolerance, the segment crosses.
+        out = vtkIdList()
+        if tol > 0:
+            box = np.column_stack([np.minimum(a, b) - tol, np.maximum(a, b) + tol]).ravel()
+            self.vtk_locator.FindCellsWithinBounds(box.tolist(), out)
+        else:
+            self.vtk_locator.FindCellsAlongLine(a, b, 0.0, out)
+        ids = np.sort(np.array([out.GetId(k) for k in range(out.GetNumberOfIds())], dtype=np.int64))
+        box = [0.0] * 6
+        lo, hi = np.empty((len(ids), 3)), np.empty((len(ids), 3))
+        for k, c in enumerate(ids):
+            self.dataset.GetCellBounds(int(c), box)
+            lo[k], hi[k] = box[0::2], box[1::2]
+        return ids[_segment_meets_boxes(a, b, lo - tol, hi + tol)]
 
     def __repr__(self) -> str:
         tree = "kdtree" if self.vtk_locator.GetTreeType() == 1 else "octree"
         return (f"CellLocator({self.dataset.GetClassName()}, {self.dataset.GetNumberOfCells()} cells, {tree}, "
                 f"height {self.vtk_locator.GetTreeHeight()}, {self.vtk_locator.GetMemorySize()} bytes, "
                 f"backend {self.backend})")
+
+
+if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process
+    from matrixtree import _engine  # noqa: E402
+
+    for _name in ("CellLocator", "cached_memory", "release_cached_memory"):
+        _engine.adopt_docs(globals()[_name], getattr(_engine, _name))
+    from matrixtree._engine import CellLocator, cached_memory, release_cached_memory  # noqa: E402, F811

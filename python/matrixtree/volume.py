@@ -5,6 +5,8 @@ scalars (and float scalars holding only integers) as 8^3-cell bricks with a 1-vo
 own width, other scalars as a block-sparse matrix of 8x8x8-voxel float blocks; it skips invisible
 space through the matrix-tree levels above them. Rays are marched on the CPU (OpenMP) or, with
 ``backend="opencl"``, by OpenCL kernels over the same storage. This module converts and delegates.
+Where the VTK module does not import, ``render_volume`` is the engine extension's
+(``matrixtree._engine``, bound at the end of this module; CPU only), with the same answers.
 """
 
 from __future__ import annotations
@@ -16,7 +18,10 @@ from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import vtkImageData, vtkPiecewiseFunction
 from vtkmodules.vtkRenderingCore import vtkCamera, vtkColorTransferFunction
 
-from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
+from matrixtree._backend import VTK_MODULE
+
+if VTK_MODULE:
+    from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
 
 from matrixtree._util import VtkErrors, check_backend, existing_file, read_by_extension
 
@@ -189,6 +194,32 @@ def frame_camera(volume, azimuth: float = 30.0, elevation: float = 20.0, view_an
     return cam
 
 
+def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin):
+    """:func:`render_volume`'s inputs checked and completed: (image, width, height, color,
+    opacity, camera, |spacing|). ValueError for the bad input its docstring lists."""
+    image = _as_image(volume, spacing, origin)
+    s = image.GetPointData().GetScalars()
+    if image.GetNumberOfPoints() == 0 or s is None:
+        raise ValueError("the volume is empty or has no point scalars")
+    if s.GetNumberOfComponents() != 1:
+        raise ValueError(f"the volume has {s.GetNumberOfComponents()}-component scalars; pass one component")
+    dims = image.GetDimensions()
+    if min(dims) < 2:
+        raise ValueError(f"the volume is {dims[0]}x{dims[1]}x{dims[2]} points; at least 2 along every axis are needed")
+    sp = np.abs(np.array(image.GetSpacing(), dtype=float))
+    if not np.all(np.isfinite(sp)) or np.any(sp == 0):
+        raise ValueError(f"spacing must be finite and non-zero, got {tuple(image.GetSpacing())}")
+    w, h = int(size[0]), int(size[1])
+    if w < 1 or h < 1:
+        raise ValueError(f"size must be positive, got {size}")
+    if color is None or opacity is None:
+        dc, do = default_transfer_functions(image)
+        color = color if color is not None else dc
+        opacity = opacity if opacity is not None else do
+    cam = camera if camera is not None else frame_camera(image)
+    return image, w, h, color, opacity, cam, sp
+
+
 def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=None, spacing=None, origin=None,
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
@@ -268,26 +299,8 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     True
     """
     check_backend(backend)
-    image = _as_image(volume, spacing, origin)
-    s = image.GetPointData().GetScalars()
-    if image.GetNumberOfPoints() == 0 or s is None:
-        raise ValueError("the volume is empty or has no point scalars")
-    if s.GetNumberOfComponents() != 1:
-        raise ValueError(f"the volume has {s.GetNumberOfComponents()}-component scalars; pass one component")
-    dims = image.GetDimensions()
-    if min(dims) < 2:
-        raise ValueError(f"the volume is {dims[0]}x{dims[1]}x{dims[2]} points; at least 2 along every axis are needed")
-    sp = np.abs(np.array(image.GetSpacing(), dtype=float))
-    if not np.all(np.isfinite(sp)) or np.any(sp == 0):
-        raise ValueError(f"spacing must be finite and non-zero, got {tuple(image.GetSpacing())}")
-    w, h = int(size[0]), int(size[1])
-    if w < 1 or h < 1:
-        raise ValueError(f"size must be positive, got {size}")
-    if color is None or opacity is None:
-        dc, do = default_transfer_functions(image)
-        color = color if color is not None else dc
-        opacity = opacity if opacity is not None else do
-    cam = camera if camera is not None else frame_camera(image)
+    image, w, h, color, opacity, cam, sp = _prepare_volume_render(volume, size, camera, color, opacity, spacing,
+                                                                  origin)
 
     caster = vtkMatrixTreeVolumeRayCaster()
     caster.SetInputData(image)
@@ -336,3 +349,11 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         "device": caster.GetOpenCLDeviceName() if backend == "opencl" else "",
     }
     return img, stats
+
+
+if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process
+    from matrixtree import _engine  # noqa: E402
+
+    for _name in ("render_volume",):
+        _engine.adopt_docs(globals()[_name], getattr(_engine, _name))
+    from matrixtree._engine import render_volume  # noqa: E402, F811
