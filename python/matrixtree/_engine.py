@@ -387,8 +387,8 @@ def transfer_table(scalars: np.ndarray, color, opacity):
 def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=None, spacing=None, origin=None,
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
-                  double_precision: bool = False, shade: bool = False, empty_space_skipping: bool = True,
-                  threads: int = 0, backend: str = "cpu", device: str | None = None, return_stats: bool = False):
+                  double_precision: bool = False, shade: bool = False, threads: int = 0, backend: str = "cpu",
+                  device: str | None = None, return_stats: bool = False):
     """Ray cast a scalar volume: ``matrixtree.volume.render_volume`` on the engine (same
     arguments and results)."""
     from matrixtree.volume import _prepare_volume_render
@@ -408,7 +408,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
                           sample_distance=float(sample_distance or 0.5 * sp.min()),
                           image_sample_distance=float(image_sample_distance),
                           early_termination=float(early_termination), double_precision=bool(double_precision),
-                          empty_space_skipping=bool(empty_space_skipping), shade=bool(shade), threads=int(threads))
+                          shade=bool(shade), threads=int(threads))
     img = np.ascontiguousarray(rgba[::-1])
     if not return_stats:
         return img
