@@ -19,7 +19,6 @@ Not public API: use the names ``matrixtree`` exports.
 from __future__ import annotations
 
 import math
-import os
 import time
 
 import numpy as np
@@ -68,7 +67,7 @@ def release_cached_memory() -> int:
 # ---------------------------------------------------------------------------------------------
 # Cell location
 # ---------------------------------------------------------------------------------------------
-class CellLocator:
+class CellLocator(_meshstate.RebuildOnChange):
     """Point location, segments and closest points on the cells of a mesh: the engine's
     ``mtree::CellLocator``. The documentation is ``matrixtree.locator.CellLocator``'s; the
     differences are the ones of this module's docstring.
@@ -99,21 +98,13 @@ class CellLocator:
         self.builds = 0
         self._build()
 
-    def _build(self) -> None:
-        state = _meshstate.fingerprint(self.dataset)
+    def _build_tree(self) -> None:
         try:
             self._loc = engine().CellLocator(*cell_arrays(self.dataset), tree=self._tree, height=self._height,
                                              threads=self._threads)
         except ValueError as e:
             raise ValueError(f"{e} (the engine extension that `pip install .` builds evaluates VTK's linear "
                              "cells; the VTK module of scripts/setup.sh takes every cell type)") from None
-        self._state = state
-        self.builds += 1
-
-    def _sync(self) -> None:
-        """Rebuild first if the data set changed since the last build (matrixtree._meshstate)."""
-        if _meshstate.fingerprint(self.dataset) != self._state:
-            self._build()
 
     def locate(self, points, *, return_pcoords: bool = False, return_weights: bool = False):
         p = points3(points, "points")
@@ -333,16 +324,10 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     """The cell locator's matrix tree over a mesh as voxels: ``matrixtree.core.tree_mesh`` on the
     engine (same arguments and result)."""
     import pyvista as pv
-    from vtkmodules.vtkCommonDataModel import vtkDataSet
 
-    from matrixtree.core import _level_range, read_mesh
+    from matrixtree.core import _level_range, _tree_mesh_input
 
-    if isinstance(mesh, (str, os.PathLike)):
-        mesh = read_mesh(mesh)
-    if not isinstance(mesh, vtkDataSet):
-        raise TypeError(f"tree_mesh needs a VTK/pyvista data set or a mesh file path, got {type(mesh).__name__}")
-    if mesh.GetNumberOfCells() == 0:
-        raise ValueError("tree_mesh: the data set has no cells (nothing to build a tree over)")
+    mesh = _tree_mesh_input(mesh)
     lo, hi, leaves_only = _level_range(levels)
     loc = engine().CellLocator(*cell_arrays(mesh), tree=_TREE_NAMES[tree_type(tree)], height=int(height),
                                exact_overlap=bool(exact_overlap))

@@ -65,3 +65,20 @@ def fingerprint(ds) -> tuple:
     if ds.IsA("vtkUnstructuredGrid"):
         key.append(_array_key(cell_types_array(ds)))
     return tuple(key)
+
+
+class RebuildOnChange:
+    """Mixin of the cell locators: ``_build()`` builds the tree (the class's ``_build_tree()``) and
+    keeps the data set's fingerprint from just before it; ``_sync()``, called first by every query,
+    rebuilds if the fingerprint changed since. ``builds`` counts the builds."""
+
+    def _build(self) -> None:
+        state = fingerprint(self.dataset)
+        self._build_tree()
+        self._state = state
+        self.builds += 1
+
+    def _sync(self) -> None:
+        """Rebuild first if the data set changed since the last build."""
+        if fingerprint(self.dataset) != self._state:
+            self._build()

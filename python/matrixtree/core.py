@@ -567,6 +567,18 @@ def _level_range(levels):
     return lo, hi, False
 
 
+def _tree_mesh_input(mesh) -> vtkDataSet:
+    """:func:`tree_mesh`'s mesh as a data set with cells (a path is read); TypeError or
+    ValueError otherwise."""
+    if isinstance(mesh, (str, os.PathLike)):
+        mesh = read_mesh(mesh)
+    if not isinstance(mesh, vtkDataSet):
+        raise TypeError(f"tree_mesh needs a VTK/pyvista data set or a mesh file path, got {type(mesh).__name__}")
+    if mesh.GetNumberOfCells() == 0:
+        raise ValueError("tree_mesh: the data set has no cells (nothing to build a tree over)")
+    return mesh
+
+
 def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_overlap: bool = False):
     """The matrix tree over a mesh or grid as boxes, for plotting (one voxel per existing node).
 
@@ -601,12 +613,7 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     import pyvista as pv
     from matrixtree_vtk import vtkMatrixTreeRepresentation
 
-    if isinstance(mesh, (str, os.PathLike)):
-        mesh = read_mesh(mesh)
-    if not isinstance(mesh, vtkDataSet):
-        raise TypeError(f"tree_mesh needs a VTK/pyvista data set or a mesh file path, got {type(mesh).__name__}")
-    if mesh.GetNumberOfCells() == 0:
-        raise ValueError("tree_mesh: the data set has no cells (nothing to build a tree over)")
+    mesh = _tree_mesh_input(mesh)
     rep = vtkMatrixTreeRepresentation()
     rep.SetTreeType(tree_type(tree))
     rep.SetHeight(int(height))

@@ -237,7 +237,14 @@ def _as_points_dataset(points):
     return pv.PolyData(points3(points, "points").copy())
 
 
-def _store(out, arrays: dict, mask: np.ndarray):
+def _sample_into(out, source, loc, pass_point_data: bool, pass_cell_data: bool, progress_bar: bool, desc: str):
+    """``out`` (a data set of its own, shallow copy) with its point or cell arrays dropped unless
+    passed, then ``source``'s arrays at its points and the valid mask as point data."""
+    if not pass_point_data:
+        out.point_data.clear()
+    if not pass_cell_data:
+        out.cell_data.clear()
+    arrays, mask = _interpolate(source, loc, np.asarray(out.points, dtype=np.float64), progress_bar, desc)
     for k, v in arrays.items():
         out.point_data[k] = v
     out.point_data[VALID_MASK] = mask
@@ -278,13 +285,7 @@ def probe(mesh, points, *, pass_cell_data: bool = True, pass_point_data: bool = 
     ([3.0, 6.25], [0, 5])
     """
     loc = _locator(mesh, locator)
-    out = _as_points_dataset(points)
-    if not pass_point_data:
-        out.point_data.clear()
-    if not pass_cell_data:
-        out.cell_data.clear()
-    arrays, mask = _interpolate(mesh, loc, np.asarray(out.points, dtype=np.float64), progress_bar, "probe")
-    return _store(out, arrays, mask)
+    return _sample_into(_as_points_dataset(points), mesh, loc, pass_point_data, pass_cell_data, progress_bar, "probe")
 
 
 def sample(mesh, target, *, pass_cell_data: bool = True, pass_point_data: bool = True,
@@ -324,14 +325,9 @@ def sample(mesh, target, *, pass_cell_data: bool = True, pass_point_data: bool =
 
     loc = _locator(target, locator)
     out = pv.wrap(mesh).copy(deep=False)
-    if not pass_point_data:
-        out.point_data.clear()
-    if not pass_cell_data:
-        out.cell_data.clear()
     if not pass_field_data:
         out.field_data.clear()
-    arrays, mask = _interpolate(target, loc, np.asarray(out.points, dtype=np.float64), progress_bar, "sample")
-    return _store(out, arrays, mask)
+    return _sample_into(out, target, loc, pass_point_data, pass_cell_data, progress_bar, "sample")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -62,7 +62,7 @@ def _segment_meets_boxes(a, b, lo, hi) -> np.ndarray:
     return np.maximum(near.max(axis=1), 0.0) <= np.minimum(far.min(axis=1), 1.0)
 
 
-class CellLocator:
+class CellLocator(_meshstate.RebuildOnChange):
     """Point location, ray (segment) casting and closest points on the cells of a mesh.
 
     Parameters
@@ -133,16 +133,8 @@ class CellLocator:
         self.builds = 0
         self._build()
 
-    def _build(self) -> None:
-        state = _meshstate.fingerprint(self.dataset)
+    def _build_tree(self) -> None:
         self.vtk_locator.ForceBuildLocator()
-        self._state = state
-        self.builds += 1
-
-    def _sync(self) -> None:
-        """Rebuild first if the data set changed since the last build (matrixtree._meshstate)."""
-        if _meshstate.fingerprint(self.dataset) != self._state:
-            self._build()
 
     def locate(self, points, *, return_pcoords: bool = False, return_weights: bool = False):
         """The cell containing each point (VTK's FindCell), or -1.
