@@ -148,7 +148,7 @@ class MatrixTree:
     >>> mesh = matrixtree.scenes.default_scene(resolution=0.3)
     >>> tree = matrixtree.MatrixTree(mesh, tree="kdtree")
     >>> t, cell = tree.intersect([[0.0, 5.0, 0.0]], [[0.0, -1.0, 0.0]])
-    >>> bool(np.isfinite(t[0])) and cell[0] >= 0
+    >>> bool(np.isfinite(t[0]) and cell[0] >= 0)
     True
     """
 

@@ -104,7 +104,7 @@ class CellLocator(_meshstate.RebuildOnChange):
     >>> from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
     >>> from vtkmodules.vtkFiltersGeneral import vtkDataSetTriangleFilter
     >>> src = vtkRTAnalyticSource(); src.SetWholeExtent(0, 4, 0, 4, 0, 4)
-    >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); tets.Update()
+    >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); _ = tets.Update()
     >>> loc = CellLocator(tets.GetOutput())
     >>> ids = loc.locate([[0.5, 0.5, 0.5], [100.0, 0.0, 0.0]])
     >>> bool(ids[0] >= 0), int(ids[1])
@@ -165,7 +165,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         >>> from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
         >>> from vtkmodules.vtkFiltersGeneral import vtkDataSetTriangleFilter
         >>> src = vtkRTAnalyticSource(); src.SetWholeExtent(0, 4, 0, 4, 0, 4)
-        >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); tets.Update()
+        >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); _ = tets.Update()
         >>> ids, w = CellLocator(tets.GetOutput()).locate([[0.1, 0.2, 0.1]], return_weights=True)
         >>> bool(ids[0] >= 0), round(float(w[0].sum()), 12)
         (True, 1.0)
@@ -218,7 +218,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         Examples
         --------
         >>> from vtkmodules.vtkFiltersSources import vtkSphereSource
-        >>> s = vtkSphereSource(); s.SetThetaResolution(64); s.SetPhiResolution(64); s.Update()
+        >>> s = vtkSphereSource(); s.SetThetaResolution(64); s.SetPhiResolution(64); _ = s.Update()
         >>> t, ids, x = CellLocator(s.GetOutput()).trace([[0, 0, 0], [2, 2, 2]], [[1, 0, 0], [1, 0, 0]])
         >>> bool(abs(x[0, 0] - 0.5) < 1e-2), bool(ids[1] == -1 and np.isinf(t[1]))
         (True, True)
@@ -251,7 +251,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         Examples
         --------
         >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
-        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); plane.Update()  # z = 0, |x|, |y| <= 0.5
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); _ = plane.Update()  # z = 0, |x|, |y| <= 0.5
         >>> cp, ids, d2 = CellLocator(plane.GetOutput()).closest_points([[0.1, 0.2, 3.0]])
         >>> bool(np.allclose(cp[0], [0.1, 0.2, 0.0])), float(d2[0])
         (True, 9.0)
@@ -286,7 +286,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         Examples
         --------
         >>> from vtkmodules.vtkFiltersSources import vtkSphereSource
-        >>> s = vtkSphereSource(); s.SetThetaResolution(32); s.SetPhiResolution(32); s.Update()
+        >>> s = vtkSphereSource(); s.SetThetaResolution(32); s.SetPhiResolution(32); _ = s.Update()
         >>> off, t, ids, x = CellLocator(s.GetOutput()).trace_all([[-2, 0.01, 0.02]], ends=[[2, 0.01, 0.02]])
         >>> off.tolist(), bool(x[0, 0] < 0 < x[1, 0])
         ([0, 2], True)
@@ -328,7 +328,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         Examples
         --------
         >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
-        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); plane.Update()   # 16 squares
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); _ = plane.Update()   # 16 squares
         >>> CellLocator(plane.GetOutput()).cells_within_bounds([-0.5, -0.3, -0.5, -0.3, -1, 1]).tolist()
         [0]
         """
@@ -345,7 +345,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         Examples
         --------
         >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
-        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); plane.Update()   # 16 squares
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); _ = plane.Update()   # 16 squares
         >>> CellLocator(plane.GetOutput()).cells_along_line([-0.4, -0.4, -1], [-0.4, -0.4, 1]).tolist()
         [0]
         """
