@@ -206,7 +206,8 @@ class MatrixTree:
         h = s["height"]
         dims = [list(d) for d in s["level_dims"]]
         return {"tree": s["tree"], "height": h, "triangles": s["triangles"], "leaves": s["leaves"],
-                "references": s["references"], "bytes": s["bytes"], "level_bytes": list(s["level_bytes"]),
+                "references": s["references"], "bytes": s["bytes"] + s["leaf_triangles_bytes"],
+                "leaf_triangle_bytes": s["leaf_triangles_bytes"], "level_bytes": list(s["level_bytes"]),
                 "level_blocks": list(s["level_blocks"]), "leaf_dims": dims[h] if dims else [0, 0, 0],
                 "level_dims": dims, "root_bounds": list(s["root_bounds"]),
                 "median_triangle_extent": s["median_extent"], "phases_ms": dict(s["phases_ms"]),
@@ -275,7 +276,7 @@ def auto_camera(points: np.ndarray, view_angle: float = 30.0):
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
            shadows: bool = True, threads: int = 0, caster: SurfaceCaster | None = None,
            backend: str = "cpu", traversal: str = "stack", triangle_test: str = "moller-trumbore",
-           leaf_scale: float | None = None) -> dict:
+           leaf_scale: float | None = None, counters: bool = False) -> dict:
     """Ray cast a mesh: ``matrixtree.core.render`` on the engine (same arguments and results;
     ``caster`` is a :class:`SurfaceCaster`)."""
     from matrixtree.core import _as_polydata, _check_render_settings
@@ -298,7 +299,7 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         eye, target, up = (tuple(float(v) for v in camera[i]) for i in range(3))
         angle = float(camera[3]) if len(camera) == 4 else 30.0
     view = dict(eye=list(eye), target=list(target), up=list(up), view_angle=angle, shadows=bool(shadows),
-                test=triangle_test)
+                test=triangle_test, counters=bool(counters))
     if kind == "sah":
         r = st.render(w, h, traversal=traversal, **view)
     else:
@@ -306,16 +307,16 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     rays = r["primary_rays"] + r["shadow_rays"]
     return {
         "rgb": np.ascontiguousarray(r["rgb"][::-1]),
-        "node_visits": np.ascontiguousarray(r["node_visits"][::-1]),
-        "triangle_tests": np.ascontiguousarray(r["triangle_tests"][::-1]),
+        "node_visits": np.ascontiguousarray(r["node_visits"][::-1]) if counters else None,
+        "triangle_tests": np.ascontiguousarray(r["triangle_tests"][::-1]) if counters else None,
         "depth": np.ascontiguousarray(r["depth"][::-1]),
         "build_ms": rc._build_ms,
         "render_ms": r["render_ms"],
         "rebuilt": rebuilt,
         "rays": rays,
         "hits": r["hits"],
-        "node_visits_per_ray": r["total_node_visits"] / max(rays, 1),
-        "triangle_tests_per_ray": r["total_triangle_tests"] / max(rays, 1),
+        "node_visits_per_ray": r["total_node_visits"] / max(rays, 1) if counters else None,
+        "triangle_tests_per_ray": r["total_triangle_tests"] / max(rays, 1) if counters else None,
         "caster": rc,
     }
 

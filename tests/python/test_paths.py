@@ -94,7 +94,8 @@ def test_matrix_tree_and_renders_agree(bunny):
     for kind in ("octree", "kdtree"):
         a, b = matrixtree.MatrixTree(bunny, tree=kind), _engine.MatrixTree(bunny, tree=kind)
         sa, sb = a.stats(), b.stats()
-        for key in ("tree", "height", "triangles", "leaves", "references", "level_blocks", "leaf_dims", "level_dims"):
+        for key in ("tree", "height", "triangles", "leaves", "references", "bytes", "leaf_triangle_bytes",
+                    "level_blocks", "leaf_dims", "level_dims"):
             assert sa[key] == sb[key], key
         np.testing.assert_allclose(sb["root_bounds"], sa["root_bounds"])
         o = random_points(bunny, 2000, seed=8, grow=0.3)
@@ -107,11 +108,14 @@ def test_matrix_tree_and_renders_agree(bunny):
         np.testing.assert_array_equal(a.find_leaves(o), b.find_leaves(o))
     for tree, traversal in (("octree", "stack"), ("kdtree", "stack"), ("sah", "restart")):
         for camera in (None, [(0.1, 0.25, 0.45), (-0.02, 0.1, 0.0), (0.0, 1.0, 0.0), 35.0]):
-            ra = matrixtree.render(bunny, size=(64, 48), tree=tree, traversal=traversal, camera=camera)
-            rb = _engine.render(bunny, size=(64, 48), tree=tree, traversal=traversal, camera=camera)
-            for key in ("rgb", "node_visits", "triangle_tests", "depth"):
-                np.testing.assert_array_equal(ra[key], rb[key], err_msg=f"{tree} {key} camera {camera}")
-            assert ra["hits"] == rb["hits"] > 100 and ra["rays"] == rb["rays"]
+            for counters in (True, False):
+                kw = dict(size=(64, 48), tree=tree, traversal=traversal, camera=camera, counters=counters)
+                ra, rb = matrixtree.render(bunny, **kw), _engine.render(bunny, **kw)
+                for key in ("rgb", "depth") + (("node_visits", "triangle_tests") if counters else ()):
+                    np.testing.assert_array_equal(ra[key], rb[key], err_msg=f"{tree} {key} camera {camera}")
+                assert ra["hits"] == rb["hits"] > 100 and ra["rays"] == rb["rays"]
+                assert (ra["node_visits"] is None) == (rb["node_visits"] is None) == (not counters)
+                assert (rb["node_visits_per_ray"] is None) == (not counters)
 
 
 def test_render_caster_rebuilds_on_the_same_changes(bunny):
