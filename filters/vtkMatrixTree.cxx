@@ -12,26 +12,33 @@
 #include "vtkPolyData.h"
 
 #include "mtree/device/opencl.h"
+#include "mtree/device/opencl_render.h"
+#include "mtree/device/opencl_trees.h"
 #include "mtree/rays/raycast.h"
+#include "mtree/rays/render.h"
 
 #include <chrono>
+#include <limits>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
-#include <limits>
 
 static_assert(int(vtkMatrixTree::CPU) == vtkMatrixTreeBackend::CPU &&
     int(vtkMatrixTree::OPENCL) == vtkMatrixTreeBackend::OPENCL,
   "vtkMatrixTree's Backend values are the shared ones");
 
 // The OpenCL backend's objects: the device, the builder (its device buffers are reused by every
-// rebuild) and the tracer that holds the last OpenCL-built tree for the queries.
+// rebuild), the tracer that holds the last OpenCL-built matrix tree for the queries, and the
+// tracer that holds the last split tree (built on the CPU) for the rays.
 struct vtkMatrixTreeOpenCL
 {
   vtkMatrixTreeDevice Device;
   std::unique_ptr<mtree::ocl::Builder> Builder;
   std::unique_ptr<mtree::ocl::Tracer> Tracer;
-  bool TreeOnDevice = false;
+  std::unique_ptr<mtree::ocl::SplitTreeTracer> SplitTracer;
+  bool TreeOnDevice = false;      // Tracer holds the tree
+  bool SplitTreeOnDevice = false; // SplitTracer holds the tree
   std::vector<mtree::ocl::KernelTiming> Kernels; // of the last build
 };
 
@@ -84,27 +91,54 @@ bool vtkMatrixTree::Build()
   opt.height = this->Height;
   opt.blockEdge = this->BlockSize;
   opt.overlap = this->ExactOverlap ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
-  opt.leafScale = this->LeafScale;
+  opt.leafScale = this->TreeType == HYBRID ? this->HybridLeafScale : this->LeafScale;
   opt.threads = this->NumberOfThreads;
+  in.Type = this->TreeType;
+  in.Traversal = static_cast<mtree::SplitTraversal>(this->SplitTraversal);
   vtkMatrixTreeOpenCL& cl = *this->OpenCL;
   cl.TreeOnDevice = false;
+  cl.SplitTreeOnDevice = false;
   cl.Kernels.clear();
+  if (this->Backend == OPENCL && in.IsHybrid())
+  {
+    vtkErrorMacro("Build: the hybrid tree has no OpenCL traversal; use the CPU backend.");
+    return false;
+  }
   try
   {
     if (this->Backend == OPENCL)
     {
-      if (cl.Device.Acquire(this->OpenCLDevice) || !cl.Builder || !cl.Tracer)
+      if (cl.Device.Acquire(this->OpenCLDevice) || !cl.Builder || !cl.Tracer || !cl.SplitTracer)
       {
         cl.Builder.reset(new mtree::ocl::Builder(cl.Device.GetContext()));
         cl.Tracer.reset(new mtree::ocl::Tracer(cl.Device.GetContext()));
+        cl.SplitTracer.reset(new mtree::ocl::SplitTreeTracer(cl.Device.GetContext()));
       }
-      cl.Builder->build(in.Mesh, opt, in.Tree, &in.Stats, &cl.Kernels);
-      cl.Tracer->upload(in.Tree, in.Mesh);
-      cl.TreeOnDevice = true;
+    }
+    if (in.IsSplit() || in.IsHybrid())
+    {
+      vtkMatrixTreeSplitTrees::Build(in, this->Height, opt);
+      if (this->Backend == OPENCL)
+      {
+        cl.SplitTracer->upload(in.Split, in.Mesh);
+        cl.SplitTreeOnDevice = true;
+      }
     }
     else
     {
-      mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(in.Mesh, opt, in.Tree, &in.Stats);
+      in.Split = mtree::ImplicitSplitTree();
+      in.Hybrid = mtree::HybridTree();
+      in.PointerBytes = 0;
+      if (this->Backend == OPENCL)
+      {
+        cl.Builder->build(in.Mesh, opt, in.Tree, &in.Stats, &cl.Kernels);
+        cl.Tracer->upload(in.Tree, in.Mesh);
+        cl.TreeOnDevice = true;
+      }
+      else
+      {
+        mtree::MatrixTreeBuilder<mtree::TriangleMesh>::build(in.Mesh, opt, in.Tree, &in.Stats);
+      }
     }
   }
   catch (const std::exception& e)
@@ -136,9 +170,21 @@ bool vtkMatrixTree::IsBuilt() const
 }
 
 //------------------------------------------------------------------------------
+const char* vtkMatrixTree::GetTreeTypeAsString() const
+{
+  static const char* const names[] = { "octree", "kdtree", "implicit-kd", "bsp", "hybrid" };
+  return names[this->TreeType];
+}
+
+//------------------------------------------------------------------------------
 int vtkMatrixTree::GetTreeHeight() const
 {
-  return this->Internals->Valid ? this->Internals->Tree.height() : 0;
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  if (!in.Valid)
+  {
+    return 0;
+  }
+  return in.IsSplit() ? in.Stats.height : in.Matrix()->height();
 }
 vtkIdType vtkMatrixTree::GetNumberOfTriangles() const
 {
@@ -152,28 +198,68 @@ vtkIdType vtkMatrixTree::GetNumberOfReferences() const
 {
   return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Stats.references) : 0;
 }
+vtkIdType vtkMatrixTree::GetNumberOfNodes() const
+{
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  if (!in.Valid)
+  {
+    return 0;
+  }
+  if (in.IsSplit())
+  {
+    return static_cast<vtkIdType>(in.Split.numNodes());
+  }
+  const uint64_t kd = in.IsHybrid() ? in.Hybrid.kdNodes().size() : 0;
+  return static_cast<vtkIdType>(vtkMatrixTreeSplitTrees::CountNodes(*in.Matrix()) + kd);
+}
 vtkIdType vtkMatrixTree::GetMemorySize() const
 {
-  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->Tree.bytes()) : 0;
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  if (!in.Valid)
+  {
+    return 0;
+  }
+  return static_cast<vtkIdType>(
+    in.IsSplit() ? in.Split.bytes() : (in.IsHybrid() ? in.Hybrid.bytes() : in.Tree.bytes()));
+}
+vtkIdType vtkMatrixTree::GetPointerTreeMemorySize() const
+{
+  return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->PointerBytes) : 0;
 }
 vtkIdType vtkMatrixTree::GetLevelMemorySize(int level) const
 {
-  const auto& t = this->Internals->Tree;
-  return (this->Internals->Valid && level >= 0 && level < t.numLevels())
-    ? static_cast<vtkIdType>(t.levelBytes(level))
-    : 0;
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  if (!in.Valid || level < 0 || level > this->GetTreeHeight())
+  {
+    return 0;
+  }
+  if (in.IsSplit())
+  {
+    const auto& levels = in.Split.levelCosts().levels;
+    return level < static_cast<int>(levels.size()) ? static_cast<vtkIdType>(levels[level].bytes) : 0;
+  }
+  return static_cast<vtkIdType>(in.Matrix()->levelBytes(level));
 }
 vtkIdType vtkMatrixTree::GetLevelNumberOfBlocks(int level) const
 {
-  const auto& t = this->Internals->Tree;
-  return (this->Internals->Valid && level >= 0 && level < t.numLevels())
-    ? static_cast<vtkIdType>(t.levelBlocks(level))
-    : 0;
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  if (!in.Valid || level < 0 || level > this->GetTreeHeight())
+  {
+    return 0;
+  }
+  if (in.IsSplit())
+  {
+    const auto& levels = in.Split.levelCosts().levels;
+    return level < static_cast<int>(levels.size()) ? static_cast<vtkIdType>(levels[level].blocks) : 0;
+  }
+  return static_cast<vtkIdType>(in.Matrix()->levelBlocks(level));
 }
 void vtkMatrixTree::GetRootBounds(double bounds[6]) const
 {
-  const mtree::Box& b = this->Internals->Tree.rootBox();
-  const bool ok = this->Internals->Valid && !this->Internals->Tree.empty();
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  const bool split = in.IsSplit();
+  const mtree::Box& b = split ? in.Split.rootBox() : in.Matrix()->rootBox();
+  const bool ok = in.Valid && !(split ? in.Split.empty() : in.Matrix()->empty());
   for (int a = 0; a < 3; ++a)
   {
     bounds[2 * a] = ok ? b.lo[a] : 0.0;
@@ -182,10 +268,12 @@ void vtkMatrixTree::GetRootBounds(double bounds[6]) const
 }
 int vtkMatrixTree::GetLevelDimension(int level, int axis) const
 {
-  const auto& t = this->Internals->Tree;
-  return (this->Internals->Valid && level >= 0 && level < t.numLevels() && axis >= 0 && axis < 3)
-    ? t.dim(level, axis)
-    : 0;
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  if (!in.Valid || level < 0 || level > this->GetTreeHeight() || axis < 0 || axis >= 3)
+  {
+    return 0;
+  }
+  return in.IsSplit() ? 1 << mtree::ImplicitSplitTree::logDim(level, axis) : in.Matrix()->dim(level, axis);
 }
 double vtkMatrixTree::GetMedianTriangleExtent() const
 {
@@ -225,7 +313,7 @@ void vtkMatrixTree::FindLeaves(vtkDataArray* points, vtkIntArray* result)
   const vtkIdType n = points->GetNumberOfTuples();
   result->SetNumberOfComponents(5);
   result->SetNumberOfTuples(n);
-  const mtree::MatrixTree& tree = this->Internals->Tree;
+  const vtkMatrixTreeInternals& in = *this->Internals;
   int* out = result->GetPointer(0);
   if (this->Backend == OPENCL && this->OpenCL->TreeOnDevice)
   {
@@ -246,18 +334,27 @@ void vtkMatrixTree::FindLeaves(vtkDataArray* points, vtkIntArray* result)
     return;
   }
   const int threads = mtree::resolveThreads(this->NumberOfThreads);
+  const mtree::MatrixTree* matrix = in.Matrix();
 #pragma omp parallel for num_threads(threads) schedule(static) if (n > 4096)
   for (vtkIdType i = 0; i < n; ++i)
   {
     double p[3];
     points->GetTuple(i, p);
-    const mtree::NodeRef r = tree.leafFind(mtree::Vec3(p));
     int* o = out + 5 * i;
-    o[0] = r.level;
-    o[1] = r.c[0];
-    o[2] = r.c[1];
-    o[3] = r.c[2];
-    o[4] = r.exists ? 1 : 0;
+    if (matrix)
+    {
+      const mtree::NodeRef r = matrix->leafFind(mtree::Vec3(p));
+      o[0] = r.level;
+      o[1] = r.c[0];
+      o[2] = r.c[1];
+      o[3] = r.c[2];
+      o[4] = r.exists ? 1 : 0;
+    }
+    else
+    {
+      const uint32_t w = in.Split.leafFind(mtree::Vec3(p), o[0], o + 1);
+      o[4] = o[0] >= 0 && w != mtree::ImplicitSplitTree::kEmpty ? 1 : 0;
+    }
   }
 }
 
@@ -285,7 +382,8 @@ vtkIdType vtkMatrixTree::IntersectRays(vtkDataArray* origins, vtkDataArray* dire
   double* tOut = t->GetPointer(0);
   vtkIdType* cOut = cellIds->GetPointer(0);
   vtkIdType hits = 0, visits = 0, tests = 0;
-  if (this->Backend == OPENCL && this->OpenCL->TreeOnDevice)
+  vtkMatrixTreeOpenCL& cl = *this->OpenCL;
+  if (this->Backend == OPENCL && (cl.TreeOnDevice || cl.SplitTreeOnDevice))
   {
     const size_t m = static_cast<size_t>(n);
     std::vector<double> o(3 * m), d(3 * m);
@@ -298,7 +396,14 @@ vtkIdType vtkMatrixTree::IntersectRays(vtkDataArray* origins, vtkDataArray* dire
     uint64_t v = 0, c = 0;
     try
     {
-      this->OpenCL->Tracer->intersectFirst(o.data(), d.data(), m, 0.0, tMax, tOut, prim.data(), &v, &c);
+      if (cl.SplitTreeOnDevice)
+      {
+        cl.SplitTracer->intersectFirst(o.data(), d.data(), m, 0.0, tMax, tOut, prim.data(), &v, &c);
+      }
+      else
+      {
+        cl.Tracer->intersectFirst(o.data(), d.data(), m, 0.0, tMax, tOut, prim.data(), &v, &c);
+      }
     }
     catch (const std::exception& e)
     {
@@ -315,28 +420,30 @@ vtkIdType vtkMatrixTree::IntersectRays(vtkDataArray* origins, vtkDataArray* dire
     return hits;
   }
   const int threads = mtree::resolveThreads(this->NumberOfThreads);
+  in.WithTracer(mtree::TriangleTest::MollerTrumbore, [&](const auto& tracer) {
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 256) reduction(+ : hits, visits, tests)
-  for (vtkIdType i = 0; i < n; ++i)
-  {
-    double o[3], d[3];
-    origins->GetTuple(i, o);
-    directions->GetTuple(i, d);
-    mtree::RayHit h;
-    mtree::TraversalStats st;
-    if (mtree::intersectFirst(in.Tree, in.Mesh, mtree::Vec3(o), mtree::Vec3(d), 0.0, tMax, h, &st))
+    for (vtkIdType i = 0; i < n; ++i)
     {
-      tOut[i] = h.t;
-      cOut[i] = in.CellOfTriangle[h.prim];
-      ++hits;
+      double o[3], d[3];
+      origins->GetTuple(i, o);
+      directions->GetTuple(i, d);
+      mtree::RayHit h;
+      mtree::TraversalStats st;
+      if (tracer.first(mtree::Vec3(o), mtree::Vec3(d), 0.0, tMax, h, &st))
+      {
+        tOut[i] = h.t;
+        cOut[i] = in.CellOfTriangle[h.prim];
+        ++hits;
+      }
+      else
+      {
+        tOut[i] = std::numeric_limits<double>::infinity();
+        cOut[i] = -1;
+      }
+      visits += static_cast<vtkIdType>(st.nodeVisits);
+      tests += static_cast<vtkIdType>(st.primTests);
     }
-    else
-    {
-      tOut[i] = std::numeric_limits<double>::infinity();
-      cOut[i] = -1;
-    }
-    visits += static_cast<vtkIdType>(st.nodeVisits);
-    tests += static_cast<vtkIdType>(st.primTests);
-  }
+  });
   this->LastNodeVisits = visits;
   this->LastTriangleTests = tests;
   return hits;
@@ -347,11 +454,14 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
 {
   this->Superclass::PrintSelf(os, indent);
   os << indent << "DataSet: " << this->DataSet << "\n";
-  os << indent << "TreeType: " << (this->TreeType == KDTREE ? "KDTREE" : "OCTREE") << "\n";
+  os << indent << "TreeType: " << this->GetTreeTypeAsString() << "\n";
+  os << indent << "SplitTraversal: " << mtree::splitTraversalName(static_cast<mtree::SplitTraversal>(this->SplitTraversal))
+     << "\n";
   os << indent << "Height: " << this->Height << (this->Height == 0 ? " (automatic)" : "") << "\n";
   os << indent << "BlockSize: " << this->BlockSize << "\n";
   os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";
   os << indent << "LeafScale: " << this->LeafScale << "\n";
+  os << indent << "HybridLeafScale: " << this->HybridLeafScale << "\n";
   os << indent << "NumberOfThreads: " << this->NumberOfThreads << "\n";
   vtkMatrixTreeBackend::Print(os, indent, this->Backend, this->OpenCLDevice, this->GetOpenCLDeviceName());
   os << indent << "ConversionTime: " << this->ConversionTime << " ms\n";
@@ -363,7 +473,9 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
     os << indent << "TreeHeight: " << this->GetTreeHeight() << "\n";
     os << indent << "NumberOfTriangles: " << this->GetNumberOfTriangles() << "\n";
     os << indent << "NumberOfLeaves: " << this->GetNumberOfLeaves() << "\n";
+    os << indent << "NumberOfNodes: " << this->GetNumberOfNodes() << "\n";
     os << indent << "MemorySize: " << this->GetMemorySize() << " bytes\n";
+    os << indent << "PointerTreeMemorySize: " << this->GetPointerTreeMemorySize() << " bytes\n";
     os << indent << "BuildTime: " << this->GetBuildTime() << " ms\n";
   }
 }
@@ -379,9 +491,31 @@ const char* vtkMatrixTree::GetBackendAsString() const
   return vtkMatrixTreeBackend::Name(this->Backend);
 }
 
-mtree::ocl::Tracer* vtkMatrixTree::GetOpenCLTracer()
+mtree::RenderResult vtkMatrixTree::Render(
+  const mtree::Camera& camera, const mtree::RenderOptions& options, bool watertight)
 {
-  return this->Backend == OPENCL && this->OpenCL->TreeOnDevice ? this->OpenCL->Tracer.get() : nullptr;
+  if (!this->BuildIfNeeded())
+  {
+    throw std::runtime_error("the tree could not be built (see the error above)");
+  }
+  const vtkMatrixTreeInternals& in = *this->Internals;
+  mtree::Box scene;
+  for (size_t i = 0; i < in.Mesh.numPoints(); ++i)
+  {
+    scene.extend(mtree::Vec3(&in.Mesh.points()[3 * i]));
+  }
+  vtkMatrixTreeOpenCL& cl = *this->OpenCL;
+  if (this->Backend == OPENCL && cl.SplitTreeOnDevice)
+  {
+    return mtree::renderOpenCL(*cl.SplitTracer, in.Mesh, scene, camera, options);
+  }
+  if (this->Backend == OPENCL && cl.TreeOnDevice)
+  {
+    return mtree::renderOpenCL(*cl.Tracer, in.Mesh, scene, camera, options);
+  }
+  const mtree::TriangleTest test = watertight ? mtree::TriangleTest::Watertight : mtree::TriangleTest::MollerTrumbore;
+  return in.WithTracer(
+    test, [&](const auto& tracer) { return mtree::render(tracer, in.Mesh, scene, camera, options); });
 }
 
 int vtkMatrixTree::GetNumberOfOpenCLKernels() const
