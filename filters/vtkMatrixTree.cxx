@@ -17,6 +17,7 @@
 #include "mtree/rays/raycast.h"
 #include "mtree/rays/render.h"
 
+#include <algorithm>
 #include <chrono>
 #include <limits>
 #include <memory>
@@ -94,7 +95,6 @@ bool vtkMatrixTree::Build()
   opt.leafScale = this->TreeType == HYBRID ? this->HybridLeafScale : this->LeafScale;
   opt.threads = this->NumberOfThreads;
   in.Type = this->TreeType;
-  in.Traversal = static_cast<mtree::SplitTraversal>(this->SplitTraversal);
   vtkMatrixTreeOpenCL& cl = *this->OpenCL;
   cl.TreeOnDevice = false;
   cl.SplitTreeOnDevice = false;
@@ -170,6 +170,20 @@ bool vtkMatrixTree::IsBuilt() const
 }
 
 //------------------------------------------------------------------------------
+void vtkMatrixTree::SetTuning(const vtkMatrixTreeTuning& tuning)
+{
+  vtkMatrixTreeTuning t = tuning;
+  t.SplitTraversal = std::min(std::max(t.SplitTraversal, int(vtkMatrixTreeTuning::RESTART)),
+    int(vtkMatrixTreeTuning::BACKTRACK));
+  this->Internals->Tuning = t;
+}
+
+const vtkMatrixTreeTuning& vtkMatrixTree::GetTuning() const
+{
+  return this->Internals->Tuning;
+}
+
+//------------------------------------------------------------------------------
 const char* vtkMatrixTree::GetTreeTypeAsString() const
 {
   static const char* const names[] = { "octree", "kdtree", "implicit-kd", "bsp", "hybrid" };
@@ -226,33 +240,38 @@ vtkIdType vtkMatrixTree::GetPointerTreeMemorySize() const
 {
   return this->Internals->Valid ? static_cast<vtkIdType>(this->Internals->PointerBytes) : 0;
 }
-vtkIdType vtkMatrixTree::GetLevelMemorySize(int level) const
+namespace
 {
-  const vtkMatrixTreeInternals& in = *this->Internals;
-  if (!in.Valid || level < 0 || level > this->GetTreeHeight())
+// One level's bytes (pointer matrix and blocks) and blocks of the built tree: a matrix level of
+// the matrix trees and the hybrid, a split tree's level; {0, 0} for a level it does not have.
+struct LevelCost
+{
+  uint64_t Bytes = 0;
+  uint64_t Blocks = 0;
+};
+LevelCost LevelCostOf(const vtkMatrixTreeInternals& in, int level, int height)
+{
+  if (!in.Valid || level < 0 || level > height)
   {
-    return 0;
+    return {};
   }
   if (in.IsSplit())
   {
     const auto& levels = in.Split.levelCosts().levels;
-    return level < static_cast<int>(levels.size()) ? static_cast<vtkIdType>(levels[level].bytes) : 0;
+    return level < static_cast<int>(levels.size()) ? LevelCost{ levels[level].bytes, levels[level].blocks }
+                                                   : LevelCost{};
   }
-  return static_cast<vtkIdType>(in.Matrix()->levelBytes(level));
+  return { in.Matrix()->levelBytes(level), in.Matrix()->levelBlocks(level) };
+}
+}
+
+vtkIdType vtkMatrixTree::GetLevelMemorySize(int level) const
+{
+  return static_cast<vtkIdType>(LevelCostOf(*this->Internals, level, this->GetTreeHeight()).Bytes);
 }
 vtkIdType vtkMatrixTree::GetLevelNumberOfBlocks(int level) const
 {
-  const vtkMatrixTreeInternals& in = *this->Internals;
-  if (!in.Valid || level < 0 || level > this->GetTreeHeight())
-  {
-    return 0;
-  }
-  if (in.IsSplit())
-  {
-    const auto& levels = in.Split.levelCosts().levels;
-    return level < static_cast<int>(levels.size()) ? static_cast<vtkIdType>(levels[level].blocks) : 0;
-  }
-  return static_cast<vtkIdType>(in.Matrix()->levelBlocks(level));
+  return static_cast<vtkIdType>(LevelCostOf(*this->Internals, level, this->GetTreeHeight()).Blocks);
 }
 void vtkMatrixTree::GetRootBounds(double bounds[6]) const
 {
@@ -455,8 +474,8 @@ void vtkMatrixTree::PrintSelf(ostream& os, vtkIndent indent)
   this->Superclass::PrintSelf(os, indent);
   os << indent << "DataSet: " << this->DataSet << "\n";
   os << indent << "TreeType: " << this->GetTreeTypeAsString() << "\n";
-  os << indent << "SplitTraversal: " << mtree::splitTraversalName(static_cast<mtree::SplitTraversal>(this->SplitTraversal))
-     << "\n";
+  os << indent << "Tuning.SplitTraversal: "
+     << mtree::splitTraversalName(static_cast<mtree::SplitTraversal>(this->Internals->Tuning.SplitTraversal)) << "\n";
   os << indent << "Height: " << this->Height << (this->Height == 0 ? " (automatic)" : "") << "\n";
   os << indent << "BlockSize: " << this->BlockSize << "\n";
   os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";

@@ -25,9 +25,6 @@
  *
  * Settings (defaults are what vtkProbeFilter-style NewInstance() users get):
  * - TreeType: as above.
- * - SplitTraversal (IMPLICIT_KDTREE, BSP_TREE): STACK (default, the fastest on a CPU), RESTART
- *   (KD-Restart) or BACKTRACK (no stack, no parent pointers: ancestors derived from the node's
- *   position, §4.1). All three give the same hits, bit for bit.
  * - Height: matrix trees and the hybrid's matrix part: levels below the root; 0 (default)
  *   chooses it from the scene: the shallowest level whose nodes are at most LeafScale (default 2;
  *   the hybrid: HybridLeafScale, default 4) times the median triangle extent. IMPLICIT_KDTREE and
@@ -44,7 +41,7 @@
  *   OpenCL kernels, on the device OpenCLDevice selects; the same tree and the same answers).
  *   OPENCL without a device, or in a build without OpenCL, makes Build() fail with an error
  *   that says so. IMPLICIT_KDTREE and BSP_TREE are built on the CPU and their rays traced on the
- *   device by the stackless BACKTRACK walk (whatever SplitTraversal says: the same hits), points
+ *   device by the stackless walk with derived parents (the same hits as the CPU's), points
  *   located on the CPU; HYBRID has no OpenCL traversal: OPENCL makes Build() fail.
  *
  * The tree is rebuilt by BuildIfNeeded() only when the data set, its points, or a setting
@@ -75,6 +72,7 @@ struct Camera;
 struct RenderOptions;
 struct RenderResult;
 }
+struct vtkMatrixTreeTuning;
 #endif
 
 class MATRIXTREEFILTERS_EXPORT vtkMatrixTree : public vtkObject
@@ -112,21 +110,6 @@ public:
   const char* GetTreeTypeAsString() const;
   ///@}
 
-  enum SplitTraversals
-  {
-    RESTART = 0,
-    STACK = 1,
-    BACKTRACK = 2
-  };
-
-  ///@{
-  /** Ray walk of IMPLICIT_KDTREE and BSP_TREE on the CPU: RESTART, STACK (default) or BACKTRACK. */
-  vtkSetClampMacro(SplitTraversal, int, RESTART, BACKTRACK);
-  vtkGetMacro(SplitTraversal, int);
-  void SetSplitTraversalToRestart() { this->SetSplitTraversal(RESTART); }
-  void SetSplitTraversalToStack() { this->SetSplitTraversal(STACK); }
-  void SetSplitTraversalToBacktrack() { this->SetSplitTraversal(BACKTRACK); }
-  ///@}
 
   ///@{
   /** Levels below the root, 0..63; 0 (default) = chosen from the scene. */
@@ -299,6 +282,15 @@ public:
    * needed; throws std::runtime_error when the tree cannot be built, and the engine's errors.
    */
   mtree::RenderResult Render(const mtree::Camera& camera, const mtree::RenderOptions& options, bool watertight);
+  ///@{
+  /**
+   * Developer settings for tests and benchmarks (vtkMatrixTreeTuning.h, C++ only): alternatives
+   * to the production path that give the same answers. Default: the production path. Query
+   * settings: a change does not rebuild the tree.
+   */
+  void SetTuning(const vtkMatrixTreeTuning& tuning);
+  const vtkMatrixTreeTuning& GetTuning() const;
+  ///@}
 #endif
 
 protected:
@@ -307,7 +299,6 @@ protected:
 
   vtkPolyData* DataSet = nullptr;
   int TreeType = OCTREE;
-  int SplitTraversal = STACK;
   int Height = 0;
   int BlockSize = 8;
   bool ExactOverlap = true;

@@ -10,6 +10,7 @@
 #include "mtree/trees/implicit_tree.h"
 
 #include "vtkMatrixTree.h"
+#include "vtkMatrixTreeTuning.h"
 
 #include <string>
 #include <utility>
@@ -28,7 +29,7 @@ struct vtkMatrixTreeInternals
   mtree::MatrixTree Tree;          // OCTREE, KDTREE
   mtree::ImplicitSplitTree Split;  // IMPLICIT_KDTREE, BSP_TREE
   mtree::HybridTree Hybrid;        // HYBRID
-  mtree::SplitTraversal Traversal = mtree::SplitTraversal::Stack; // of Split, on the CPU
+  vtkMatrixTreeTuning Tuning; // the developer settings (vtkMatrixTree::SetTuning)
   mtree::BuildStats Stats; // matrix trees and the hybrid's matrix part; phases and total for all
   uint64_t PointerBytes = 0; // a split tree in SahKdNode's pointer layout (pointerBytes())
   bool Valid = false;
@@ -46,14 +47,16 @@ struct vtkMatrixTreeInternals
 
   /**
    * f(tracer) with the CPU tracer (render.h's interface) of the built tree over Mesh:
-   * MatrixTreeTracer, ImplicitTreeTracer with Traversal, or HybridTracer; returns f's result.
+   * MatrixTreeTracer, ImplicitTreeTracer with Tuning.SplitTraversal, or HybridTracer; returns f's
+   * result.
    */
   template <class F>
   decltype(auto) WithTracer(mtree::TriangleTest test, F&& f) const
   {
     if (this->IsSplit())
     {
-      return std::forward<F>(f)(mtree::ImplicitTreeTracer{ this->Split, this->Mesh, this->Traversal, test });
+      const auto walk = static_cast<mtree::SplitTraversal>(this->Tuning.SplitTraversal);
+      return std::forward<F>(f)(mtree::ImplicitTreeTracer{ this->Split, this->Mesh, walk, test });
     }
     if (this->IsHybrid())
     {

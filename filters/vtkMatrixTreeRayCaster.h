@@ -20,8 +20,8 @@
  *
  * The accelerator is selectable, so that every tree of the paper renders through the same code:
  * MATRIX_TREE (default) traces through GetTree() with its TreeType: the matrix octree or
- * kd-tree, the implicit general kd-tree or BSP tree (with GetTree()'s SplitTraversal), or the
- * hybrid matrix/SAH tree (vtkMatrixTree, docs/trees.md); SetAcceleratorToSAHKdTree() traces
+ * kd-tree, the implicit general kd-tree or BSP tree, or the hybrid matrix/SAH tree
+ * (vtkMatrixTree, docs/trees.md); SetAcceleratorToSAHKdTree() traces
  * through the baseline, a surface-area-heuristic kd-tree (Wald & Havran's O(N log N) build,
  * 8-byte pointer nodes) with the traversal SAHTraversal (KD-Restart, a full stack, or a short
  * stack of ShortStackSize entries). TriangleTest picks Moller-Trumbore (default) or the
