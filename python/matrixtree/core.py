@@ -114,7 +114,7 @@ class MatrixTree:
     height : int, default: 0
         Levels below the root, 0 = chosen from the scene (leaves about ``leaf_scale`` median
         triangle extents wide); for ``"implicit-kd"`` and ``"bsp"`` the depth limit of the build
-        (0 = round(8 + 1.3 log2 N); more than 46 fails).
+        (0 = round(8 + 1.3 log2 N); a tree deeper than 46 levels fails to build).
     block_size : int, default: 8
         Edge of the B^3 blocks of the block-sparse levels (power of two, 1..32); ``"implicit-kd"``
         and ``"bsp"`` choose each level's block shape themselves.
@@ -123,10 +123,6 @@ class MatrixTree:
     leaf_scale : float, optional
         Target leaf extent of the automatic height, in median triangle extents: default 2.0, and
         4.0 for the hybrid's matrix part (its kd-trees split the larger leaves).
-    traversal : {"stack", "restart", "backtrack"}, default: "stack"
-        The ray walk of ``"implicit-kd"`` and ``"bsp"`` on the CPU: a stack, KD-Restart, or the
-        stackless walk with derived parents (same hits; the stack is the fastest on a CPU).
-        Ignored by the other trees.
     threads : int, default: 0
         OpenMP threads, 0 = all.
     backend : {"cpu", "opencl"}, default: "cpu"
@@ -149,8 +145,8 @@ class MatrixTree:
     """
 
     def __init__(self, mesh, tree: str = "octree", height: int = 0, block_size: int = 8,
-                 exact: bool = True, leaf_scale: float | None = None, traversal: str = "stack",
-                 threads: int = 0, backend: str = "cpu", device: str | None = None):
+                 exact: bool = True, leaf_scale: float | None = None, threads: int = 0,
+                 backend: str = "cpu", device: str | None = None):
         self.mesh = _as_polydata(mesh)
         backend_id = _backend(backend)
         tree_id = tree_type(tree, RAY_TREES)
@@ -160,14 +156,11 @@ class MatrixTree:
             raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
         if leaf_scale is not None and not leaf_scale > 0:
             raise ValueError(f"leaf_scale must be > 0, got {leaf_scale!r}")
-        if traversal not in _SPLIT_TRAVERSALS:
-            raise ValueError(f"traversal must be one of {sorted(_SPLIT_TRAVERSALS)}, got {traversal!r}")
         if tree == "hybrid" and backend_id == vtkMatrixTree.OPENCL:
             raise ValueError("the hybrid tree has no OpenCL walk: use backend='cpu'")
         self._tree = vtkMatrixTree()
         self._tree.SetDataSet(self.mesh)
         self._tree.SetTreeType(tree_id)
-        self._tree.SetSplitTraversal(_SPLIT_TRAVERSALS[traversal])
         self._tree.SetHeight(int(height))
         self._tree.SetBlockSize(int(block_size))
         self._tree.SetExactOverlap(bool(exact))
@@ -201,8 +194,8 @@ class MatrixTree:
         bytes, blocks and dimensions, the root box, per-phase build times (ms) and the total (ms).
 
         The level entries describe the matrix levels (for the hybrid, its matrix part). For
-        ``"implicit-kd"`` and ``"bsp"`` also ``traversal`` and ``pointer_tree_bytes``: the same
-        tree as 8-byte pointer nodes, what the implicit layout's storage is compared with."""
+        ``"implicit-kd"`` and ``"bsp"`` also ``pointer_tree_bytes``: the same tree as 8-byte
+        pointer nodes, what the implicit layout's storage is compared with."""
         t = self._tree
         h = t.GetTreeHeight()
         root = [0.0] * 6
@@ -210,8 +203,7 @@ class MatrixTree:
         name = t.GetTreeTypeAsString()
         extra = {}
         if name in SPLIT_TREES:
-            extra = {"traversal": _SPLIT_TRAVERSAL_NAMES[t.GetSplitTraversal()],
-                     "pointer_tree_bytes": t.GetPointerTreeMemorySize()}
+            extra = {"pointer_tree_bytes": t.GetPointerTreeMemorySize()}
         return {
             "tree": name,
             "height": h,
@@ -287,8 +279,6 @@ class MatrixTree:
 
 
 _TRAVERSALS = {"restart": 0, "stack": 1, "shortstack": 2}
-_SPLIT_TRAVERSALS = {"restart": 0, "stack": 1, "backtrack": 2}
-_SPLIT_TRAVERSAL_NAMES = {v: k for k, v in _SPLIT_TRAVERSALS.items()}
 _TESTS = {"moller-trumbore": 0, "mt": 0, "watertight": 1}
 
 
@@ -310,10 +300,9 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     height : int, default: 0
         Matrix-tree height, 0 = automatic (from the scene, see ``leaf_scale``); the depth limit of
         ``"implicit-kd"`` and ``"bsp"`` (see :class:`MatrixTree`).
-    traversal : {"stack", "shortstack", "restart", "backtrack"}, default: "stack"
-        SAH kd-tree traversal: a full stack, a short stack of 3 entries, or KD-Restart;
-        ``"implicit-kd"`` and ``"bsp"``: a stack, KD-Restart or the stackless ``"backtrack"``.
-        Ignored for the matrix trees and the hybrid (they walk leaf to neighbour, no stack).
+    traversal : {"stack", "shortstack", "restart"}, default: "stack"
+        SAH kd-tree traversal: a full stack, a short stack of 3 entries, or KD-Restart. Ignored
+        for the trees of :class:`MatrixTree` (each has its production walk).
     triangle_test : {"moller-trumbore", "watertight"}, default: "moller-trumbore"
         Moller-Trumbore is the fastest; the watertight test (Woop, Benthin & Wald 2013) lets no ray
         slip between the triangles of a closed mesh, at a few percent of speed.
@@ -355,10 +344,8 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         raise ValueError(f"size must be two positive integers, got {size!r}")
     if tree != "sah":
         tree_type(tree, {**RAY_TREES, "sah": None})  # ValueError naming every tree
-    walks = _TRAVERSALS if tree == "sah" else _SPLIT_TRAVERSALS if tree in SPLIT_TREES else \
-        {**_TRAVERSALS, **_SPLIT_TRAVERSALS}
-    if traversal not in walks:
-        raise ValueError(f"traversal must be one of {sorted(walks)} for tree={tree!r}, got {traversal!r}")
+    if traversal not in _TRAVERSALS:
+        raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
     if triangle_test not in _TESTS:
         raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
     if tree in ("sah", "hybrid") and backend != "cpu":
@@ -370,8 +357,6 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     else:
         rc.SetAcceleratorToMatrixTree()
         rc.GetTree().SetTreeType(RAY_TREES[tree])
-        if tree in SPLIT_TREES:
-            rc.GetTree().SetSplitTraversal(_SPLIT_TRAVERSALS[traversal])
     rc.SetTriangleTest(_TESTS[triangle_test])
     if leaf_scale is not None:
         (rc.GetTree().SetHybridLeafScale if tree == "hybrid" else rc.GetTree().SetLeafScale)(float(leaf_scale))
@@ -640,6 +625,9 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     out = pv.wrap(rep.GetOutput())
     if leaves_only and out.n_cells:
         h = int(out.field_data["tree_height"][0])
-        out = out.extract_cells(np.flatnonzero(out.cell_data["level"] == h))
+        keep = np.asarray(out.cell_data["level"]) == h
+        if "direction" in out.cell_data:  # the hybrid: its matrix leaves, not its kd roots' planes
+            keep &= np.asarray(out.cell_data["direction"]) == -1
+        out = out.extract_cells(np.flatnonzero(keep))
         out.field_data["tree_height"] = [h]
     return out
