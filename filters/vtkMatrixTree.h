@@ -6,8 +6,7 @@
  * vtkMatrixTree builds the implicit, block-sparse trees of Andrysco & Tricoche ("Implicit and
  * Dynamic Trees for High Performance Rendering", 2011) over the polygons and strips of a
  * vtkPolyData (triangulated internally). Each tree level is one block-sparse matrix, so parent,
- * child and neighbour nodes are computed rather than stored. Tree types (docs/trees.md measures
- * the last three):
+ * child and neighbour nodes are computed rather than stored. Tree types:
  * - OCTREE (default), KDTREE: the matrix trees (§3), regular splits (KDTREE: centre splits, one
  *   axis per level), built by the parallel bottom-up build of §5.1; leaf finding is a hash plus a
  *   binary search over depth. The fastest to build: the choice for meshes that change every frame.
@@ -109,7 +108,6 @@ public:
   /** "octree", "kdtree", "implicit-kd", "bsp" or "hybrid". */
   const char* GetTreeTypeAsString() const;
   ///@}
-
 
   ///@{
   /** Levels below the root, 0..63; 0 (default) = chosen from the scene. */
