@@ -16,8 +16,6 @@
 #include "vtkUnsignedCharArray.h"
 #include "vtkUnsignedIntArray.h"
 
-#include "mtree/device/opencl.h"
-#include "mtree/device/opencl_render.h"
 #include "mtree/rays/render.h"
 #include "mtree/rays/sah_kdtree.h"
 
@@ -154,7 +152,8 @@ int vtkMatrixTreeRayCaster::RequestData(
     const vtkIdType buildsBefore = this->Tree->GetNumberOfBuilds();
     if (!this->Tree->BuildIfNeeded())
     {
-      vtkErrorMacro("RequestData: the matrix tree could not be built (see the error above).");
+      vtkErrorMacro("RequestData: the " << this->Tree->GetTreeTypeAsString()
+                                          << " tree could not be built (see the error above).");
       return 0;
     }
     this->LastRebuilt = this->Tree->GetNumberOfBuilds() != buildsBefore;
@@ -212,22 +211,17 @@ int vtkMatrixTreeRayCaster::RequestData(
       this->Sah->Payload.empty() ? nullptr : &this->Sah->Payload };
     r = mtree::render(tracer, mesh, scene, cam, ro);
   }
-  else if (mtree::ocl::Tracer* clTracer = this->Tree->GetOpenCLTracer())
+  else
   {
     try
     {
-      r = mtree::renderOpenCL(*clTracer, in.Mesh, scene, cam, ro);
+      r = this->Tree->Render(cam, ro, test == mtree::TriangleTest::Watertight);
     }
     catch (const std::exception& e)
     {
-      vtkErrorMacro("RequestData (opencl backend): " << e.what());
+      vtkErrorMacro("RequestData (" << this->Tree->GetBackendAsString() << " backend): " << e.what());
       return 0;
     }
-  }
-  else
-  {
-    const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh, test, in.Payload.empty() ? nullptr : &in.Payload };
-    r = mtree::render(tracer, in.Mesh, scene, cam, ro);
   }
   this->UpdateProgress(0.9);
 
@@ -294,7 +288,8 @@ void vtkMatrixTreeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   this->Superclass::PrintSelf(os, indent);
   vtkMatrixTreeBackend::Print(
     os, indent, this->Tree->GetBackend(), this->Tree->GetOpenCLDevice(), this->Tree->GetOpenCLDeviceName());
-  os << indent << "Accelerator: " << (this->Accelerator == SAH_KDTREE ? "SAH kd-tree" : "matrix tree") << "\n";
+  os << indent << "Accelerator: "
+     << (this->Accelerator == SAH_KDTREE ? "SAH kd-tree" : this->Tree->GetTreeTypeAsString()) << "\n";
   os << indent << "SAHTraversal: " << this->SAHTraversal << "\n";
   os << indent << "ShortStackSize: " << this->ShortStackSize << "\n";
   os << indent << "TriangleTest: " << (this->TriangleTest == WATERTIGHT ? "watertight" : "Moller-Trumbore") << "\n";

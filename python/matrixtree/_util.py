@@ -15,15 +15,19 @@ from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonCore import VTK_STRING, vtkPoints
 
 TREES = {"octree": 0, "kdtree": 1}
+# vtkMatrixTree's TreeType: the matrix trees and the split-plane / hybrid trees (docs/trees.md).
+RAY_TREES = {"octree": 0, "kdtree": 1, "implicit-kd": 2, "bsp": 3, "hybrid": 4}
+SPLIT_TREES = ("implicit-kd", "bsp")
 BACKENDS = ("cpu", "opencl")
 
 
-def tree_type(tree: str) -> int:
-    """The VTK classes' TreeType value of ``"octree"`` or ``"kdtree"``; ValueError otherwise."""
+def tree_type(tree: str, trees: dict = TREES) -> int:
+    """The VTK classes' TreeType value of a name of ``trees`` (default: ``"octree"`` or
+    ``"kdtree"``, the cell locator's); ValueError otherwise."""
     try:
-        return TREES[tree]
-    except KeyError:
-        raise ValueError(f"tree must be one of {sorted(TREES)}, got {tree!r}") from None
+        return trees[tree]
+    except (KeyError, TypeError):
+        raise ValueError(f"tree must be one of {sorted(trees)}, got {tree!r}") from None
 
 
 def check_backend(backend: str) -> str:

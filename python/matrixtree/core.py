@@ -11,7 +11,8 @@ from vtkmodules.vtkCommonDataModel import vtkDataSet, vtkPolyData
 
 from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
 
-from matrixtree._util import check_backend, existing_file, points3, read_by_extension, tree_type, vtk_points
+from matrixtree._util import (RAY_TREES, SPLIT_TREES, VtkErrors, check_backend, existing_file, points3, read_by_extension,
+                              tree_type, vtk_points)
 
 
 def _backend(backend: str) -> int:
@@ -96,29 +97,39 @@ def _as_polydata(mesh) -> vtkPolyData:
 
 
 class MatrixTree:
-    """A matrix octree or regular kd-tree over the triangles of a surface mesh.
+    """A matrix octree or kd-tree, an implicit general kd-tree or BSP tree, or the hybrid
+    matrix/SAH tree over the triangles of a surface mesh.
 
     Parameters
     ----------
     mesh : vtkPolyData, pyvista.PolyData, any vtkDataSet, or str
         The surface (polygons and strips are triangulated; other data sets contribute their
         boundary surface); a path is read with :func:`read_mesh`.
-    tree : {"octree", "kdtree"}, default: "octree"
-        Octree, or regular kd-tree (centre splits, one axis per level).
+    tree : {"octree", "kdtree", "implicit-kd", "bsp", "hybrid"}, default: "octree"
+        The matrix octree or regular kd-tree (centre splits, one axis per level; the fastest
+        builds); ``"implicit-kd"``, a kd-tree with SAH splits stored in the same per-level
+        matrices (the paper's §4.1); ``"bsp"``, an implicit BSP tree with 26-DOP planes (§4.2, a
+        slow build); ``"hybrid"``, a matrix octree with small SAH kd-trees in its leaves (§7).
+        docs/trees.md compares them.
     height : int, default: 0
         Levels below the root, 0 = chosen from the scene (leaves about ``leaf_scale`` median
-        triangle extents wide).
+        triangle extents wide); for ``"implicit-kd"`` and ``"bsp"`` the depth limit of the build
+        (0 = round(8 + 1.3 log2 N); a tree deeper than 46 levels fails to build).
     block_size : int, default: 8
-        Edge of the B^3 blocks of the block-sparse levels (power of two, 1..32).
+        Edge of the B^3 blocks of the block-sparse levels (power of two, 1..32); ``"implicit-kd"``
+        and ``"bsp"`` choose each level's block shape themselves.
     exact : bool, default: True
         Exact triangle/leaf overlap; False uses bounding boxes (faster build, more tests per ray).
-    leaf_scale : float, default: 2.0
-        Target leaf extent of the automatic height, in median triangle extents.
+    leaf_scale : float, optional
+        Target leaf extent of the automatic height, in median triangle extents: default 2.0, and
+        4.0 for the hybrid's matrix part (its kd-trees split the larger leaves).
     threads : int, default: 0
         OpenMP threads, 0 = all.
     backend : {"cpu", "opencl"}, default: "cpu"
         Where the build and the queries run: the OpenMP engine, or OpenCL kernels (same tree,
-        same answers). ``"opencl"`` without a device raises RuntimeError saying so.
+        same answers). ``"opencl"`` without a device raises RuntimeError saying so. The split
+        trees are built on the CPU and traced on the device by the stackless walk; ``"hybrid"``
+        has no OpenCL walk (ValueError).
     device : str, optional
         OpenCL device: ``"P:D"`` indices, a device number, or part of its name; default
         ``$MATRIXTREE_OPENCL_DEVICE``, else the first GPU, else the first device.
@@ -134,23 +145,27 @@ class MatrixTree:
     """
 
     def __init__(self, mesh, tree: str = "octree", height: int = 0, block_size: int = 8,
-                 exact: bool = True, leaf_scale: float = 2.0, threads: int = 0,
+                 exact: bool = True, leaf_scale: float | None = None, threads: int = 0,
                  backend: str = "cpu", device: str | None = None):
         self.mesh = _as_polydata(mesh)
         backend_id = _backend(backend)
+        tree_id = tree_type(tree, RAY_TREES)
         if not (isinstance(height, (int, np.integer)) and 0 <= height <= 63):
             raise ValueError(f"height must be an integer in [0, 63] (0 = automatic), got {height!r}")
         if block_size not in (1, 2, 4, 8, 16, 32):
             raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
-        if not leaf_scale > 0:
+        if leaf_scale is not None and not leaf_scale > 0:
             raise ValueError(f"leaf_scale must be > 0, got {leaf_scale!r}")
+        if tree == "hybrid" and backend_id == vtkMatrixTree.OPENCL:
+            raise ValueError("the hybrid tree has no OpenCL walk: use backend='cpu'")
         self._tree = vtkMatrixTree()
         self._tree.SetDataSet(self.mesh)
-        self._tree.SetTreeType(tree_type(tree))
+        self._tree.SetTreeType(tree_id)
         self._tree.SetHeight(int(height))
         self._tree.SetBlockSize(int(block_size))
         self._tree.SetExactOverlap(bool(exact))
-        self._tree.SetLeafScale(float(leaf_scale))
+        if leaf_scale is not None:
+            (self._tree.SetHybridLeafScale if tree == "hybrid" else self._tree.SetLeafScale)(float(leaf_scale))
         self._tree.SetNumberOfThreads(int(threads))
         self._tree.SetBackend(backend_id)
         if device is not None:
@@ -169,23 +184,34 @@ class MatrixTree:
                 raise RuntimeError("building the matrix tree with the OpenCL backend failed: no OpenCL "
                                    "device, a device error, or bad input (the VTK error above says which); "
                                    "use backend='cpu' or install an OpenCL driver (e.g. pocl-opencl-icd)")
-            raise RuntimeError("building the matrix tree failed: the mesh has non-finite coordinates "
-                               "or bad connectivity (see the VTK error above)")
+            raise RuntimeError(f"building the {self._tree.GetTreeTypeAsString()} tree failed: the mesh has "
+                               "non-finite coordinates or bad connectivity, or the tree would pass its depth "
+                               "limit (see the VTK error above)")
         return self
 
     def stats(self) -> dict:
-        """Build statistics: height, triangles, leaves, references, bytes (the tree with its leaf
-        triangles), the leaf triangles' bytes alone, per-level bytes, blocks and node counts, the root box, per-phase build times (ms) and the total (ms)."""
+        """Build statistics: tree, height, triangles, leaves, references, nodes, bytes (the tree
+        with its leaf triangles), the leaf triangles' bytes alone (``leaf_triangle_bytes``),
+        per-level bytes, blocks and dimensions, the root box, per-phase build times (ms) and the total (ms).
+
+        The level entries describe the matrix levels (for the hybrid, its matrix part). For
+        ``"implicit-kd"`` and ``"bsp"`` also ``pointer_tree_bytes``: the same tree as 8-byte
+        pointer nodes, what the implicit layout's storage is compared with."""
         t = self._tree
         h = t.GetTreeHeight()
         root = [0.0] * 6
         t.GetRootBounds(root)
+        name = t.GetTreeTypeAsString()
+        extra = {}
+        if name in SPLIT_TREES:
+            extra = {"pointer_tree_bytes": t.GetPointerTreeMemorySize()}
         return {
-            "tree": "octree" if t.GetTreeType() == 0 else "kdtree",
+            "tree": name,
             "height": h,
             "triangles": t.GetNumberOfTriangles(),
             "leaves": t.GetNumberOfLeaves(),
             "references": t.GetNumberOfReferences(),
+            "nodes": t.GetNumberOfNodes(),
             "bytes": t.GetMemorySize(),
             "leaf_triangle_bytes": t.GetLeafTrianglesMemorySize(),
             "level_bytes": [t.GetLevelMemorySize(l) for l in range(h + 1)],
@@ -200,6 +226,7 @@ class MatrixTree:
             "conversion_ms": t.GetConversionTime(),
             "backend": t.GetBackendAsString(),
             "device": t.GetOpenCLDeviceName() if t.GetBackend() == vtkMatrixTree.OPENCL else "",
+            **extra,
         }
 
     def find_leaves(self, points) -> np.ndarray:
@@ -214,6 +241,8 @@ class MatrixTree:
         numpy.ndarray, shape (N, 5), int32
             ``level, i, j, k, exists`` per point: the existing leaf containing it (exists = 1)
             or the largest empty node containing it (exists = 0); level -1 outside the tree.
+            ``"implicit-kd"``, ``"bsp"``: the leaf on the point's side of every plane (the left
+            side on a plane), exists = 0 for an empty leaf; ``"hybrid"``: its matrix part's.
         """
         p = points3(points, "points")
         out = vtkIntArray()
@@ -266,21 +295,23 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     mesh : vtkPolyData, pyvista.PolyData or str
     size : (int, int), default: (800, 800)
         Image width and height.
-    tree : {"octree", "kdtree", "sah"}, default: "octree"
-        A matrix octree or regular matrix kd-tree, or the baseline: a SAH kd-tree (Wald & Havran
-        build, 8-byte nodes; CPU only) traced with ``traversal``.
+    tree : {"octree", "kdtree", "implicit-kd", "bsp", "hybrid", "sah"}, default: "octree"
+        A tree of :class:`MatrixTree` (the matrix octree or kd-tree, the implicit kd-tree or BSP
+        tree, the hybrid), or the baseline: a SAH kd-tree (Wald & Havran build, 8-byte pointer
+        nodes; CPU only) traced with ``traversal``.
     height : int, default: 0
-        Matrix-tree height, 0 = automatic (from the scene, see ``leaf_scale``).
+        Matrix-tree height, 0 = automatic (from the scene, see ``leaf_scale``); the depth limit of
+        ``"implicit-kd"`` and ``"bsp"`` (see :class:`MatrixTree`).
     traversal : {"stack", "shortstack", "restart"}, default: "stack"
         SAH kd-tree traversal: a full stack, a short stack of 3 entries, or KD-Restart. Ignored
-        for matrix trees (they walk leaf to neighbour, no stack).
+        for the trees of :class:`MatrixTree` (each has its production walk).
     triangle_test : {"moller-trumbore", "watertight"}, default: "moller-trumbore"
         Moller-Trumbore is the fastest; the watertight test (Woop, Benthin & Wald 2013) lets no ray
         slip between the triangles of a closed mesh, at a few percent of speed.
     leaf_scale : float, optional
         Automatic height: the leaf extent aimed at, as a multiple of the median triangle extent
         (engine default 2.0, fastest build; 1.0 renders faster on most meshes, see
-        docs/bench_rays.md).
+        docs/bench_rays.md); for ``"hybrid"`` its matrix part's (default 4.0).
     camera : None or sequence, default: None
         ``None`` frames the mesh automatically; otherwise a pyvista-style camera position
         ``[position, focal_point, view_up]`` (optionally with a fourth item, the vertical view
@@ -294,7 +325,8 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         Reuse a caster (and its tree) across frames; the tree is rebuilt only if the mesh changed.
     backend : {"cpu", "opencl"}, default: "cpu"
         Build and trace on the OpenMP engine or with OpenCL kernels (see :class:`MatrixTree`);
-        with "opencl" the per-pixel ``node_visits``/``triangle_tests`` are 0.
+        with "opencl" the per-pixel ``node_visits``/``triangle_tests`` are 0. ``"sah"`` and
+        ``"hybrid"`` run on the CPU only (ValueError).
 
     Returns
     -------
@@ -315,22 +347,24 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     w, h = int(size[0]), int(size[1])
     if w < 1 or h < 1:
         raise ValueError(f"size must be two positive integers, got {size!r}")
+    if tree != "sah":
+        tree_type(tree, {**RAY_TREES, "sah": None})  # ValueError naming every tree
     if traversal not in _TRAVERSALS:
         raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
     if triangle_test not in _TESTS:
         raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
+    if tree in ("sah", "hybrid") and backend != "cpu":
+        raise ValueError(f"the {tree!r} tree runs on the CPU only: use backend='cpu'")
     rc = caster if caster is not None else vtkMatrixTreeRayCaster()
     if tree == "sah":
-        if backend != "cpu":
-            raise ValueError("the SAH kd-tree baseline runs on the CPU only: use backend='cpu'")
         rc.SetAcceleratorToSAHKdTree()
         rc.SetSAHTraversal(_TRAVERSALS[traversal])
     else:
         rc.SetAcceleratorToMatrixTree()
-        rc.GetTree().SetTreeType(tree_type(tree))
+        rc.GetTree().SetTreeType(RAY_TREES[tree])
     rc.SetTriangleTest(_TESTS[triangle_test])
     if leaf_scale is not None:
-        rc.GetTree().SetLeafScale(float(leaf_scale))
+        (rc.GetTree().SetHybridLeafScale if tree == "hybrid" else rc.GetTree().SetLeafScale)(float(leaf_scale))
     rc.GetTree().SetBackend(_backend(backend))
     rc.GetTree().SetHeight(int(height))
     rc.GetTree().SetNumberOfThreads(int(threads))
@@ -521,28 +555,38 @@ def save_heatmap(counts: np.ndarray, path: str | os.PathLike, vmax: float, cmap:
 
 
 def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_overlap: bool = False):
-    """The matrix tree over a mesh or grid as boxes, for plotting (one voxel per existing node).
+    """The tree over a mesh or grid for plotting: a matrix tree's nodes as boxes (one voxel per
+    existing node), or the split planes of an implicit kd-tree, BSP tree or hybrid tree.
 
     Parameters
     ----------
     mesh : vtkDataSet, pyvista dataset or str
         Any data set (its cells are indexed; a surface mesh's triangles), or a mesh file path.
-    tree : {"octree", "kdtree"}, default: "octree"
+        ``"implicit-kd"``, ``"bsp"`` and ``"hybrid"`` index triangles: a data set that is not a
+        surface contributes its boundary surface.
+    tree : {"octree", "kdtree", "implicit-kd", "bsp", "hybrid"}, default: "octree"
+        The cell locator's matrix octree or kd-tree, or a tree of :class:`MatrixTree`.
     height : int, default: 0
-        Tree height; 0 = automatic (the cell locator's rule: leaf extent from the median cell).
+        Tree height; 0 = automatic (the cell locator's rule: leaf extent from the median cell);
+        for ``"implicit-kd"`` and ``"bsp"`` the depth limit of their build.
     levels : None, int or (int, int), default: None
         Which levels to output: ``None`` = every level from the root to the leaves, an int = that
-        level only, ``(lo, hi)`` = levels lo..hi (``hi = -1``: the leaf level).
+        level only, ``(lo, hi)`` = levels lo..hi (``hi = -1``: the leaf level; for the split
+        planes, every level).
     exact_overlap : bool, default: False
         Bounding-box cell/box overlap (the cell locator's default) or exact (a separating-axis
-        test: fewer references on tetrahedra, a slower build).
+        test: fewer references on tetrahedra, a slower build); for ``"hybrid"``, of its matrix part.
 
     Returns
     -------
     pyvista.UnstructuredGrid
-        Voxels with cell arrays ``level``, ``occupancy`` (fraction of an inner node's children
-        that exist; 1 for leaves) and ``cell_count`` (cells overlapping the node); field data
-        ``tree_height``.
+        Matrix trees: voxels with cell arrays ``level``, ``occupancy`` (fraction of an inner
+        node's children that exist; 1 for leaves) and ``cell_count`` (cells overlapping the node);
+        field data ``tree_height``. ``"implicit-kd"``, ``"bsp"``: one polygon per inner node, its
+        split plane clipped to the node's cell, with cell arrays ``level`` and ``direction`` (0-2
+        the axes, 3-12 the BSP tree's diagonals); ``"hybrid"``: voxels for its matrix nodes
+        (``direction`` -1) and polygons for its leaves' kd-trees, whose planes start at the matrix
+        leaves' level ``tree_height``. ``levels=-1`` keeps the matrix leaves only.
 
     Examples
     --------
@@ -554,14 +598,17 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     import pyvista as pv
     from matrixtree_vtk import vtkMatrixTreeRepresentation
 
+    tree_id = tree_type(tree, RAY_TREES)
     if isinstance(mesh, (str, os.PathLike)):
         mesh = read_mesh(mesh)
     if not isinstance(mesh, vtkDataSet):
         raise TypeError(f"tree_mesh needs a VTK/pyvista data set or a mesh file path, got {type(mesh).__name__}")
     if mesh.GetNumberOfCells() == 0:
         raise ValueError("tree_mesh: the data set has no cells (nothing to build a tree over)")
+    if tree_id >= RAY_TREES["implicit-kd"]:
+        mesh = _as_polydata(mesh)
     rep = vtkMatrixTreeRepresentation()
-    rep.SetTreeType(tree_type(tree))
+    rep.SetTreeType(tree_id)
     rep.SetHeight(int(height))
     rep.SetExactOverlap(bool(exact_overlap))
     if levels is None:
@@ -571,6 +618,9 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     else:
         lo, hi = (int(v) for v in levels)
     if lo < 0 and hi == lo:  # levels=-1: the leaves only
+        if tree in SPLIT_TREES:
+            raise ValueError(f"levels=-1: a {tree!r} tree draws its inner nodes' planes, its leaves have none; "
+                             "give a level or (lo, hi)")
         rep.SetMinLevel(0)
         rep.SetMaxLevel(-1)
         leaves_only = True
@@ -582,10 +632,16 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
         rep.SetMaxLevel(hi)
         leaves_only = False
     rep.SetInputData(mesh)
-    rep.Update()
+    with VtkErrors(rep) as errors:
+        rep.Update()
+    if errors.last:
+        raise RuntimeError(f"tree_mesh: {errors.last}")
     out = pv.wrap(rep.GetOutput())
     if leaves_only and out.n_cells:
         h = int(out.field_data["tree_height"][0])
-        out = out.extract_cells(np.flatnonzero(out.cell_data["level"] == h))
+        keep = np.asarray(out.cell_data["level"]) == h
+        if "direction" in out.cell_data:  # the hybrid: its matrix leaves, not its kd roots' planes
+            keep &= np.asarray(out.cell_data["direction"]) == -1
+        out = out.extract_cells(np.flatnonzero(keep))
         out.field_data["tree_height"] = [h]
     return out
