@@ -9,7 +9,7 @@
 // included) or an index out of range; coordinates in one of mfuzz::Input's modes; build options;
 // 16 query points (on node boundaries, at cell vertices, uniform). Invariants:
 //   - CellSet and the builder accept the case or throw std::invalid_argument / std::length_error;
-//   - the engine's cell evaluation (mtree::evaluateLinearCell) runs on every evaluable cell;
+//   - the engine's cell evaluation (mtree::vtk91::evaluateLinearCell) runs on every evaluable cell;
 //   - the locator's candidate set is conservative: every cell whose bounds hold a query point
 //     (with the bounding-box overlap; with the exact test, every well-shaped cell the engine
 //     finds the point inside) is a reference of the leaf holding the point, and its quantized
@@ -24,8 +24,9 @@
 #include <vector>
 
 #include "fuzz_input.h"
-#include "mtree/cells/cell_eval.h"
+#include "mtree/vtk91/cell_eval.h"
 #include "mtree/cells/cells.h"
+#include "mtree/cells/leaf_boxes.h"
 #include "mtree/core/builder.h"
 
 using namespace mtree;
@@ -121,7 +122,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (!cells.exactBounds(c).contains(x)) continue;
       const int64_t n = cells.numCellPoints(c);
       bool mustFind = opt.overlap == OverlapMode::BoundingBox;
-      if (cellEvaluable(cells.type(c), n)) {
+      if (vtk91::cellEvaluable(cells.type(c), n)) {
         double cp[3 * CellSet::kMaxLocalPoints], pc[3], w[CellSet::kMaxLocalPoints];
         for (int64_t k = 0; k < n; ++k) {
           const Vec3 p = cells.cellPoint(c, k);
@@ -130,7 +131,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
           cp[3 * k + 2] = p.z;
         }
         const double xx[3] = {x.x, x.y, x.z};
-        const bool inside = evaluateLinearCell(cells.type(c), cp, xx, pc, w) == PointInCell::kInside;
+        const bool inside = vtk91::evaluateLinearCell(cells.type(c), cp, xx, pc, w) == vtk91::PointInCell::kInside;
         mustFind |= inside && wellShaped[c];
       }
       if (!mustFind) continue;
