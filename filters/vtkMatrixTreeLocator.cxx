@@ -17,7 +17,6 @@
 #include "mtree/core/memory.h"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 #include <string>
 #include <vector>
@@ -220,9 +219,7 @@ vtkIdType vtkMatrixTreeLocator::FindClosestPointWithinRadius(double x[3], double
   subId = 0;
   inside = 0;
   dist2 = VTK_DOUBLE_MAX;
-  // A non-finite query point is no distance from anything: no closest point (cellId -1).
-  const bool finite = std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2]);
-  if (!finite || !this->EnsureBuilt() || this->Processor->Tree.empty() || !(radius >= 0))
+  if (!this->EnsureBuilt() || this->Processor->Tree.empty() || !(radius >= 0))
   {
     return 0;
   }

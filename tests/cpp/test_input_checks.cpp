@@ -15,8 +15,10 @@
 
 #include <vtkCellArray.h>
 #include <vtkCellLocator.h>
+#include <vtkDoubleArray.h>
 #include <vtkFloatArray.h>
 #include <vtkGenericCell.h>
+#include <vtkIdTypeArray.h>
 #include <vtkImageData.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
@@ -305,6 +307,24 @@ TEST(Locator, NonFinitePointsHaveNoClosestPoint) {
   loc->FindClosestPoint(x, cp, cell, id, sub, d2);
   EXPECT_EQ(id, 0);
   EXPECT_EQ(d2, 0.0);
+
+  // The batched FindClosestPoints: the same answers, with its documented NaN point and inf d2.
+  vtkNew<vtkPoints> pts;
+  pts->InsertNextPoint(0, inf, 0);
+  pts->InsertNextPoint(nan, 0, 0);
+  pts->InsertNextPoint(-inf, 1, 1);
+  pts->InsertNextPoint(x);
+  vtkNew<vtkDoubleArray> cps, d2s;
+  vtkNew<vtkIdTypeArray> ids;
+  loc->FindClosestPoints(pts, cps, ids, d2s);
+  ASSERT_EQ(ids->GetNumberOfTuples(), 4);
+  for (vtkIdType i = 0; i < 3; ++i) {
+    EXPECT_EQ(ids->GetValue(i), -1) << "point " << i;
+    EXPECT_TRUE(std::isinf(d2s->GetValue(i))) << "point " << i;
+    for (int k = 0; k < 3; ++k) EXPECT_TRUE(std::isnan(cps->GetComponent(i, k))) << "point " << i;
+  }
+  EXPECT_EQ(ids->GetValue(3), 0);
+  EXPECT_EQ(d2s->GetValue(3), 0.0);
 }
 
 }  // namespace
