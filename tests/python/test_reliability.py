@@ -71,7 +71,8 @@ def test_render_view_up_along_the_view_is_replaced_not_refused():
 
 
 def test_render_size_beyond_the_limit_is_refused_up_front():
-    """100000 x 100000 used to render for minutes at 16384^2 and then fail to reshape."""
+    """A size past 16384 per side is refused before any work (a silent clamp would render minutes
+    at 16384^2 and give an image of the wrong shape)."""
     got = outcome("""
         import time, pyvista as pv, matrixtree
         t0 = time.perf_counter()
@@ -131,7 +132,8 @@ def test_render_volume_degenerate_cameras_are_refused():
            "ray are supported: use sample_distance >= 4.96e-06"),
 ])
 def test_sample_distance_out_of_range_is_refused_not_a_hang(sd, message):
-    """sample_distance <= 0 used to be clamped to 1e-9 by the VTK setter: a render ran for hours."""
+    """A distance <= 0, or one asking for more than 2^20 samples per ray, is refused at once (a clamp
+    to 1e-9 would render for hours)."""
     got = outcome("""
         import sys, numpy as np, matrixtree
         try:
@@ -208,7 +210,7 @@ def test_cell_locator_build_failure_is_raised_by_the_constructor():
 
 def test_every_query_of_a_failed_locator_raises_the_build_error():
     """A locator whose rebuild fails (here: a height whose leaf level needs 2^68 bytes) raises
-    that reason from every query; it used to return empty arrays from trace and closest_points."""
+    that reason from every query, trace and closest_points included (never empty arrays)."""
     loc = matrixtree.CellLocator(tet_grid())
     loc.vtk_locator.SetHeight(25)
     reason = r"height 25 needs a 2\^68-byte pointer matrix"
@@ -239,7 +241,8 @@ def test_every_query_of_a_failed_matrix_tree_raises_the_build_error():
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("scale", [1e39, 1e100, 1e120, 1e300])
 def test_coordinates_beyond_1e30_are_refused_with_the_real_reason(scale):
-    """They were refused as "non-finite" (the locator) or answered wrongly (rays at 1e100-1e120)."""
+    """Refused with the supported range, not as "non-finite" and not answered (rays at 1e100-1e120
+    would return t = inf and wrong cells)."""
     reason = r"beyond the supported range \[-1e30, 1e30\]"
     g = tet_grid()
     g.points = g.points * scale
@@ -255,7 +258,8 @@ def test_coordinates_beyond_1e30_are_refused_with_the_real_reason(scale):
 
 @pytest.mark.parametrize("scale", [1e-160, 1e-200, 1e-300])
 def test_tiny_extents_are_refused_with_the_real_reason(scale):
-    """Below 1e-30 across, rays missed everything (<= 1e-110) and closest points went wrong."""
+    """Refused with the supported extent (below it, rays would miss everything and closest points
+    go wrong)."""
     reason = r"the points span only .* at least 1e-30 is supported"
     g = tet_grid()
     g.points = g.points * scale
@@ -293,7 +297,7 @@ def test_answers_scale_exactly_inside_the_supported_range(scale):
 
 
 def test_non_finite_query_points_get_documented_answers():
-    """closest_points([[0, inf, 0]]) gave a cell, d2 = 1e-322 and an uninitialised point."""
+    """A non-finite query point is in no cell and has no closest point: id -1, d2 = inf, point NaN."""
     loc = matrixtree.CellLocator(tet_grid())
     bad = [[0.0, np.inf, 0.0], [np.nan, 0.0, 0.0], [-np.inf, 1.0, 1.0]]
     cp, ids, d2 = loc.closest_points(bad + [[0.5, 0.5, 0.5]])
@@ -320,7 +324,7 @@ def test_query_settings_out_of_range_are_refused():
 
 
 def test_locate_no_points_with_weights_gives_empty_arrays():
-    """locate on a (0, 3) array with return_weights=True failed to reshape."""
+    """locate on a (0, 3) array with return_weights=True gives empty arrays of the right shapes."""
     loc = matrixtree.CellLocator(tet_grid())
     ids, pc, w = loc.locate(np.zeros((0, 3)), return_pcoords=True, return_weights=True)
     assert ids.shape == (0,) and pc.shape == (0, 3) and w.shape == (0, 4)

@@ -113,7 +113,7 @@ def subprocess_read_mesh(path):
 
 
 def test_truncated_ascii_ply_is_an_error_not_a_crash(tmp_path):
-    """Half of bunny.ply's bytes segfaulted `python -m matrixtree render`."""
+    """Half of bunny.ply's bytes (ASCII), on which VTK 9.1's vtkPLYReader segfaults: a ValueError."""
     src = open(os.path.join(DATA, "meshes", "bunny.ply"), "rb").read()
     path = tmp_path / "half.ply"
     path.write_bytes(src[:len(src) // 2])
@@ -122,7 +122,7 @@ def test_truncated_ascii_ply_is_an_error_not_a_crash(tmp_path):
 
 
 def test_truncated_binary_ply_is_an_error_not_a_crash(tmp_path):
-    """A binary PLY cut at 75% aborted with "double free"."""
+    """A binary PLY cut at 75%, on which vtkPLYReader aborts with "double free": a ValueError."""
     src = open(os.path.join(DATA, "meshes", "lucy.ply"), "rb").read()
     path = tmp_path / "cut.ply"
     path.write_bytes(src[:3 * len(src) // 4])
@@ -161,7 +161,7 @@ def test_every_truncation_of_a_ply_is_read_or_refused(tmp_path, binary):
     ("f 1 2 x", r"line 4: a face corner is not an index"),
 ])
 def test_obj_face_index_out_of_range_is_an_error(tmp_path, face, match):
-    """`f 1 2 999` rendered with rc 0, reading the vertex from out-of-bounds memory."""
+    """`f 1 2 999`, whose vertex vtkOBJReader reads from out-of-bounds memory: a ValueError."""
     path = tmp_path / "bad.obj"
     path.write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\n{face}\n")
     with pytest.raises(ValueError, match=match):
@@ -185,7 +185,7 @@ def test_empty_mesh_files_are_an_error(tmp_path, name):
 
 @pytest.mark.parametrize("name", ["g.su2", "g.vtu", "g.vtk", "g.ex2", "g.msh"])
 def test_empty_grid_files_are_an_error_not_an_exit(tmp_path, name):
-    """meshio's SU2 reader called sys.exit() on an empty file: the process ended silently."""
+    """meshio's SU2 reader calls sys.exit() on an empty file: a ValueError, the process goes on."""
     (tmp_path / name).write_bytes(b"")
     with pytest.raises(ValueError, match="file is empty"):
         matrixtree.read_grid(str(tmp_path / name))
