@@ -53,17 +53,18 @@ VPY="$ROOT/.venv/bin/python"
 configure() {
   local dir="$1" sanitize="$2" tests="$3"
   shift 3
+  mkdir -p "$ROOT/$dir"
   cmake -S "$ROOT" -B "$ROOT/$dir" -DCMAKE_C_COMPILER="$CC_BIN" -DCMAKE_CXX_COMPILER="$CXX_BIN" \
     -DCMAKE_BUILD_TYPE=Sanitize -DCMAKE_CXX_FLAGS_SANITIZE="-O1 -g" -DCMAKE_C_FLAGS_SANITIZE="-O1 -g" \
     -DMATRIXTREE_SANITIZE="$sanitize" -DMATRIXTREE_TESTS="$tests" -DMATRIXTREE_OPENCL=OFF \
-    -DMATRIXTREE_BENCHMARKS=OFF "$@" >"$ROOT/$dir.configure.log" 2>&1 \
-    || { tail -n 30 "$ROOT/$dir.configure.log" >&2; die "cmake configure of $dir failed"; }
+    -DMATRIXTREE_BENCHMARKS=OFF "$@" >"$ROOT/$dir/configure.log" 2>&1 \
+    || { tail -n 30 "$ROOT/$dir/configure.log" >&2; die "cmake configure of $dir failed"; }
 }
 build() {
   local dir="$1"
   shift
-  cmake --build "$ROOT/$dir" -j"$JOBS" --target "$@" >"$ROOT/$dir.build.log" 2>&1 \
-    || { grep -E 'error|Error' "$ROOT/$dir.build.log" | head -n 30 >&2; die "build in $dir failed (see $dir.build.log)"; }
+  cmake --build "$ROOT/$dir" -j"$JOBS" --target "$@" >"$ROOT/$dir/build.log" 2>&1 \
+    || { grep -E 'error|Error' "$ROOT/$dir/build.log" | head -n 30 >&2; die "build in $dir failed (see $dir/build.log)"; }
 }
 
 # The C++ subset under ASan+UBSan: every engine area (trees, builds, cells, rays, volume, layout,
@@ -126,13 +127,13 @@ fuzz)
     mkdir -p "$corpus"
     regressions="tests/fuzz/regressions/$h"
     # Replay the regressions (-runs=0 runs each given input once), then fuzz from seed 1.
-    if ! ASAN_OPTIONS="detect_leaks=1" build-fuzz/tests/fuzz/"$h" -runs=0 "$regressions" >"build-fuzz/$h.replay.log" 2>&1; then
+    if ! ASAN_OPTIONS="detect_leaks=1" build-fuzz/bin/"$h" -runs=0 "$regressions" >"build-fuzz/$h.replay.log" 2>&1; then
       tail -n 20 "build-fuzz/$h.replay.log"
       failed=1
       say "$h: a regression input fails (build-fuzz/$h.replay.log)"
       continue
     fi
-    ASAN_OPTIONS="detect_leaks=1" build-fuzz/tests/fuzz/"$h" -seed=1 -max_total_time="$SECS" -timeout=20 -rss_limit_mb=4096 \
+    ASAN_OPTIONS="detect_leaks=1" build-fuzz/bin/"$h" -seed=1 -max_total_time="$SECS" -timeout=20 -rss_limit_mb=4096 \
       -max_len=4096 -print_final_stats=1 -artifact_prefix="build-fuzz/findings/$h-" "$corpus" "$regressions" \
       >"build-fuzz/$h.log" 2>&1
     rc=$?
