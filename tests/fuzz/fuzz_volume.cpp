@@ -40,7 +40,9 @@ std::vector<T> scalars(mfuzz::Input& in, size_t n) {
       x = in.below(16) == 0 ? in.rawDouble() : double(in.below(1000));
     }
     if constexpr (std::is_integral_v<T>) {
-      v[i] = static_cast<T>(std::isfinite(x) ? std::fmod(std::fabs(x), 60000.0) : 0.0);
+      // Into [0, max of T] before the cast (a double past T's range has no T value).
+      const double wrap = double(std::numeric_limits<T>::max()) + 1.0;
+      v[i] = static_cast<T>(std::isfinite(x) ? std::fmod(std::fabs(x), wrap) : 0.0);
     } else {
       v[i] = static_cast<T>(x);
     }
