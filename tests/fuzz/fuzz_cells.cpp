@@ -54,13 +54,7 @@ const Template kTemplates[] = {{10, 4, kTet, 0.0}, {12, 8, kHex, 0.2}, {13, 6, k
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   mfuzz::Input in(data, size);
-  BuildOptions opt;
-  opt.kind = in.flag() ? TreeKind::RegularKd : TreeKind::Octree;
-  opt.height = int(in.below(opt.kind == TreeKind::Octree ? 6 : 16));
-  opt.blockEdge = 1 << in.below(6);
-  opt.overlap = in.flag() ? OverlapMode::Exact : OverlapMode::BoundingBox;
-  opt.sort = in.flag() ? BuildSort::Counting : BuildSort::Radix;
-  opt.leafScale = 0.5 * (1 + in.below(8));
+  BuildOptions opt = mfuzz::treeOptions(in);
   opt.maxCandidates = 1 + in.below(16);
   opt.threads = 1 + int(in.below(2));
 

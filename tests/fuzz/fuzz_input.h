@@ -12,6 +12,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "mtree/core/builder.h"
+
 namespace mfuzz {
 
 class Input {
@@ -62,6 +64,20 @@ class Input {
   const uint8_t* p_;
   const uint8_t* end_;
 };
+
+/// The build options both tree harnesses draw, in this order: kind, height (automatic, or small
+/// enough that the dense leaf pointer matrix stays in megabytes), block edge, overlap test, sort,
+/// leaf scale. A harness draws its other options after these.
+inline mtree::BuildOptions treeOptions(Input& in) {
+  mtree::BuildOptions opt;
+  opt.kind = in.flag() ? mtree::TreeKind::RegularKd : mtree::TreeKind::Octree;
+  opt.height = int(in.below(opt.kind == mtree::TreeKind::Octree ? 6 : 16));
+  opt.blockEdge = 1 << in.below(6);
+  opt.overlap = in.flag() ? mtree::OverlapMode::Exact : mtree::OverlapMode::BoundingBox;
+  opt.sort = in.flag() ? mtree::BuildSort::Counting : mtree::BuildSort::Radix;
+  opt.leafScale = 0.5 * (1 + in.below(8));
+  return opt;
+}
 
 /// A harness's invariant broke: print what and abort (libFuzzer saves the input as a crash).
 [[noreturn]] inline void fail(const char* what) {

@@ -28,14 +28,7 @@ using namespace mtree;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   mfuzz::Input in(data, size);
-  BuildOptions opt;
-  opt.kind = in.flag() ? TreeKind::RegularKd : TreeKind::Octree;
-  // Heights: automatic, or small enough that the dense leaf pointer matrix stays in megabytes.
-  opt.height = int(in.below(opt.kind == TreeKind::Octree ? 6 : 16));
-  opt.blockEdge = 1 << in.below(6);
-  opt.overlap = in.flag() ? OverlapMode::Exact : OverlapMode::BoundingBox;
-  opt.sort = in.flag() ? BuildSort::Counting : BuildSort::Radix;
-  opt.leafScale = 0.5 * (1 + in.below(8));
+  BuildOptions opt = mfuzz::treeOptions(in);
   opt.threads = 1 + int(in.below(2));
 
   const mfuzz::Input::Mode mode = in.mode();
