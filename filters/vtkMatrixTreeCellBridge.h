@@ -117,7 +117,9 @@ inline void FillCell(vtkDataSet* ds, const mtree::CellSet& cells, vtkIdType id, 
 }
 
 /**
- * Does cell `id` contain x, as VTK's EvaluatePosition decides? If so the cell is filled into
+ * Does cell `id` contain x, as vtkCellLocator decides: EvaluatePosition says inside and, for a
+ * cell of dimension < 3 (a vertex, a line or a polygon in a 3-D grid, where "inside" only means
+ * that x projects into the cell), x also lies in the cell's bounds. If so the cell is filled into
  * `cell` and pcoords and weights are VTK's. engineEval: the linear volume cells are evaluated by
  * mtree::vtk91::evaluateLinearCell (VTK's arithmetic; VTK is asked where a different rounding
  * could change the answer) and only a containing cell is filled; otherwise every cell is filled
@@ -153,7 +155,8 @@ MT_ALWAYS_INLINE bool CellContains(vtkDataSet* ds, const mtree::CellSet& cells, 
     return false;
   }
   FillCell(ds, cells, id, cell);
-  return cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
+  return cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1 &&
+    (cell->GetCellDimension() == 3 || cells.exactBounds(c).contains(mtree::Vec3(x)));
 }
 
 /**

@@ -101,7 +101,8 @@ namespace vtkMatrixTreeConvert
  * Triangulates the polygons and strips of `pd` (triangles as they are, quads and other polygons
  * as fans from their first point, strips alternating) into an engine mesh. Vertices and lines
  * are skipped. `cellOfTriangle` receives the source cell id of every triangle.
- * Returns false and fills `error` on non-finite coordinates.
+ * Returns false and fills `error` when the engine refuses the mesh (coordinates out of
+ * mtree::checkCoordinateRange's range, more than 2^32 - 1 points).
  */
 bool ToTriangleMesh(vtkPolyData* pd, mtree::TriangleMesh& mesh, std::vector<vtkIdType>& cellOfTriangle,
   std::string& error);

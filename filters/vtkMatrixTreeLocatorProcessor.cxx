@@ -299,6 +299,11 @@ int vtkMatrixTreeLocatorProcessor::AllHits(
 vtkIdType vtkMatrixTreeLocatorProcessor::ClosestPoint(vtkDataSet* ds, const double x[3], double radius,
   double closestPoint[3], vtkGenericCell* cell, vtkIdType& cellId, int& subId, double& dist2, int& inside) const
 {
+  // A non-finite query point is no distance from anything: no closest point (the caller's -1).
+  if (!(std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2])))
+  {
+    return 0;
+  }
   std::vector<double> weights(static_cast<size_t>(std::max(ds->GetMaxCellSize(), 1)));
   double cp[3], pc[3], d2;
   int sid;

@@ -2,6 +2,7 @@
 
 #include "vtkMatrixTree.h"
 #include "vtkMatrixTreeBackend.h"
+#include "vtkMatrixTreeChecks.h"
 #include "vtkMatrixTreeInternals.h"
 
 #include "vtkFloatArray.h"
@@ -71,8 +72,9 @@ int vtkMatrixTreeRayCaster::FillInputPortInformation(int, vtkInformation* info)
 int vtkMatrixTreeRayCaster::RequestInformation(
   vtkInformation*, vtkInformationVector**, vtkInformationVector* outputVector)
 {
-  const int w = std::min(std::max(this->ImageSize[0], 1), 16384);
-  const int h = std::min(std::max(this->ImageSize[1], 1), 16384);
+  // The extent of a size RequestData will refuse is clamped here: information cannot fail.
+  const int w = std::min(std::max(this->ImageSize[0], 1), vtkMatrixTreeChecks::kMaxImageSide);
+  const int h = std::min(std::max(this->ImageSize[1], 1), vtkMatrixTreeChecks::kMaxImageSide);
   int extent[6] = { 0, w - 1, 0, h - 1, 0, 0 };
   vtkInformation* outInfo = outputVector->GetInformationObject(0);
   outInfo->Set(vtkStreamingDemandDrivenPipeline::WHOLE_EXTENT(), extent, 6);
@@ -91,8 +93,18 @@ int vtkMatrixTreeRayCaster::RequestData(
     vtkErrorMacro("RequestData: missing input polydata or output image.");
     return 0;
   }
-  const int w = std::min(std::max(this->ImageSize[0], 1), 16384);
-  const int h = std::min(std::max(this->ImageSize[1], 1), 16384);
+  std::string invalid = vtkMatrixTreeChecks::ImageSize(this->ImageSize);
+  if (invalid.empty() && !this->AutoCamera)
+  {
+    invalid = vtkMatrixTreeChecks::Camera(this->Position, this->FocalPoint);
+  }
+  if (!invalid.empty())
+  {
+    vtkErrorMacro("RequestData: " << invalid << ".");
+    return 0;
+  }
+  const int w = this->ImageSize[0];
+  const int h = this->ImageSize[1];
   output->SetExtent(0, w - 1, 0, h - 1, 0, 0);
   output->SetOrigin(0, 0, 0);
   output->SetSpacing(1, 1, 1);

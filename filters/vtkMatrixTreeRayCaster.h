@@ -50,13 +50,17 @@ public:
   vtkGetObjectMacro(Tree, vtkMatrixTree);
 
   ///@{
-  /** Image width and height in pixels (default 800 x 800, each clamped to 1..16384). */
+  /** Image width and height in pixels (default 800 x 800, each 1..16384: RequestData refuses others). */
   vtkSetVector2Macro(ImageSize, int);
   vtkGetVector2Macro(ImageSize, int);
   ///@}
 
   ///@{
-  /** Pinhole camera; used when AutoCamera is off. */
+  /**
+   * Pinhole camera; used when AutoCamera is off. Position and FocalPoint must be finite and
+   * apart (RequestData refuses others); a ViewUp along the view direction is replaced by the y
+   * (or x) axis.
+   */
   vtkSetVector3Macro(Position, double);
   vtkGetVector3Macro(Position, double);
   vtkSetVector3Macro(FocalPoint, double);

@@ -11,6 +11,8 @@ from vtkmodules.vtkCommonDataModel import vtkDataSet, vtkPolyData
 
 from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
 
+from matrixtree import _checks
+from matrixtree._readers import check_not_empty, read_obj, read_ply
 from matrixtree._util import (RAY_TREES, SPLIT_TREES, VtkErrors, check_backend, existing_file, points3, read_by_extension,
                               tree_type, vtk_points)
 
@@ -19,9 +21,14 @@ def _backend(backend: str) -> int:
     return vtkMatrixTree.OPENCL if check_backend(backend) == "opencl" else vtkMatrixTree.CPU
 
 
-_MESH_READERS = {".ply": "vtkIOPLY.vtkPLYReader", ".obj": "vtkIOGeometry.vtkOBJReader",
-                 ".stl": "vtkIOGeometry.vtkSTLReader", ".vtp": "vtkIOXML.vtkXMLPolyDataReader",
+# PLY and OBJ go through the checking readers of matrixtree._readers (VTK 9.1's crash on, or
+# read out of bounds for, truncated and malformed files); the others through VTK's readers in a
+# child process (matrixtree._sandbox), whose errors and crashes become ValueError.
+_MESH_READERS = {".stl": "vtkIOGeometry.vtkSTLReader", ".vtp": "vtkIOXML.vtkXMLPolyDataReader",
                  ".vtk": "vtkIOLegacy.vtkPolyDataReader"}
+#: Bytes per pixel a render holds at its peak: the engine's arrays (19), the output image's (23)
+#: and the numpy copies (15), rounded up.
+_RENDER_BYTES_PER_PIXEL = 64
 
 
 def read_mesh(path: str | os.PathLike) -> vtkPolyData:
@@ -31,7 +38,9 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     ----------
     path : str or os.PathLike
         A ``.ply``, ``.obj``, ``.stl``, ``.vtp`` or legacy ``.vtk`` file. OBJ files are
-        triangulated and their duplicated vertices merged (``vtkOBJReader`` does not merge).
+        triangulated and their duplicated vertices merged. PLY (ASCII and binary) and OBJ are
+        read by checking readers: every count in a PLY header is checked against the bytes that
+        follow and every face index against the vertices, before anything is allocated.
 
     Returns
     -------
@@ -43,7 +52,10 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     FileNotFoundError
         If ``path`` does not exist.
     ValueError
-        If the extension is not one of the above, or the file holds no polygons.
+        If the extension is not one of the above, the file is empty, truncated or malformed (the
+        message names the element, record or line; for ``.stl``, ``.vtp`` and ``.vtk``, read by
+        VTK in a child process, what the reader reported, or that it crashed or ran out of
+        memory or time), a face refers to a missing vertex, or the file holds no polygons.
 
     Examples
     --------
@@ -54,15 +66,31 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     """
     path = existing_file(path, "mesh")
     ext = os.path.splitext(path)[1].lower()
-    out = read_by_extension(path, _MESH_READERS,
-                            f"unsupported mesh extension {ext!r} (use .ply, .obj, .stl, .vtp or .vtk)")
+    if ext == ".ply":
+        out = read_ply(path)
+    elif ext == ".obj":
+        out = read_obj(path)
+    else:
+        unsupported = f"unsupported mesh extension {ext!r} (use .ply, .obj, .stl, .vtp or .vtk)"
+        if ext in _MESH_READERS:
+            check_not_empty(path, "mesh")
+        out = read_by_extension(path, _MESH_READERS, unsupported)  # in a child process: see _sandbox
+    out = _triangulated(out, merge_points=ext == ".obj")
+    if out.GetNumberOfPolys() == 0:
+        raise ValueError(f"{path} holds no polygons")
+    return out
+
+
+def _triangulated(out: vtkPolyData, merge_points: bool) -> vtkPolyData:
+    """The polygons and strips of ``out`` as triangles (vertices and lines dropped); with
+    ``merge_points`` coincident points merged (an OBJ file repeats them per texture corner)."""
     from vtkmodules.vtkFiltersCore import vtkCleanPolyData, vtkTriangleFilter
 
     tri = vtkTriangleFilter()
     tri.SetInputData(out)
     tri.PassVertsOff()
     tri.PassLinesOff()
-    if ext == ".obj":
+    if merge_points:
         clean = vtkCleanPolyData()
         clean.SetInputConnection(tri.GetOutputPort())
         clean.PointMergingOn()
@@ -74,8 +102,6 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     else:
         tri.Update()
         out = tri.GetOutput()
-    if out.GetNumberOfPolys() == 0:
-        raise ValueError(f"{path} holds no polygons")
     result = vtkPolyData()
     result.ShallowCopy(out)
     return result
@@ -112,7 +138,7 @@ class MatrixTree:
         slow build); ``"hybrid"``, a matrix octree with small SAH kd-trees in its leaves (§7).
         docs/trees.md compares them.
     height : int, default: 0
-        Levels below the root, 0 = chosen from the scene (leaves about ``leaf_scale`` median
+        Levels below the root (0..63), 0 = chosen from the scene (leaves about ``leaf_scale`` median
         triangle extents wide); for ``"implicit-kd"`` and ``"bsp"`` the depth limit of the build
         (0 = round(8 + 1.3 log2 N); a tree deeper than 46 levels fails to build).
     block_size : int, default: 8
@@ -121,10 +147,10 @@ class MatrixTree:
     exact : bool, default: True
         Exact triangle/leaf overlap; False uses bounding boxes (faster build, more tests per ray).
     leaf_scale : float, optional
-        Target leaf extent of the automatic height, in median triangle extents: default 2.0, and
-        4.0 for the hybrid's matrix part (its kd-trees split the larger leaves).
+        Target leaf extent of the automatic height, in median triangle extents (0.001..1000): default
+        2.0, and 4.0 for the hybrid's matrix part (its kd-trees split the larger leaves).
     threads : int, default: 0
-        OpenMP threads, 0 = all.
+        OpenMP threads (0..4096), 0 = all.
     backend : {"cpu", "opencl"}, default: "cpu"
         Where the build and the queries run: the OpenMP engine, or OpenCL kernels (same tree,
         same answers). ``"opencl"`` without a device raises RuntimeError saying so. The split
@@ -133,6 +159,15 @@ class MatrixTree:
     device : str, optional
         OpenCL device: ``"P:D"`` indices, a device number, or part of its name; default
         ``$MATRIXTREE_OPENCL_DEVICE``, else the first GPU, else the first device.
+
+    Raises
+    ------
+    ValueError
+        A setting out of the range given above.
+    RuntimeError
+        The build failed, with the engine's reason: a coordinate that is NaN, inf or beyond
+        +-1e30, a mesh spanning less than 1e-30, or a ``height`` whose leaf level would need more
+        than 1 GiB of pointers. If a later :meth:`build` fails, every query raises that reason.
 
     Examples
     --------
@@ -150,23 +185,23 @@ class MatrixTree:
         self.mesh = _as_polydata(mesh)
         backend_id = _backend(backend)
         tree_id = tree_type(tree, RAY_TREES)
-        if not (isinstance(height, (int, np.integer)) and 0 <= height <= 63):
-            raise ValueError(f"height must be an integer in [0, 63] (0 = automatic), got {height!r}")
+        height = _checks.integer(height, "height", 0, 63, "0 = automatic")
         if block_size not in (1, 2, 4, 8, 16, 32):
             raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
-        if leaf_scale is not None and not leaf_scale > 0:
-            raise ValueError(f"leaf_scale must be > 0, got {leaf_scale!r}")
+        if leaf_scale is not None:
+            leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
+        threads = _checks.threads(threads)
         if tree == "hybrid" and backend_id == vtkMatrixTree.OPENCL:
             raise ValueError("the hybrid tree has no OpenCL walk: use backend='cpu'")
         self._tree = vtkMatrixTree()
         self._tree.SetDataSet(self.mesh)
         self._tree.SetTreeType(tree_id)
-        self._tree.SetHeight(int(height))
+        self._tree.SetHeight(height)
         self._tree.SetBlockSize(int(block_size))
         self._tree.SetExactOverlap(bool(exact))
         if leaf_scale is not None:
-            (self._tree.SetHybridLeafScale if tree == "hybrid" else self._tree.SetLeafScale)(float(leaf_scale))
-        self._tree.SetNumberOfThreads(int(threads))
+            (self._tree.SetHybridLeafScale if tree == "hybrid" else self._tree.SetLeafScale)(leaf_scale)
+        self._tree.SetNumberOfThreads(threads)
         self._tree.SetBackend(backend_id)
         if device is not None:
             self._tree.SetOpenCLDevice(str(device))
@@ -178,16 +213,25 @@ class MatrixTree:
         return self._tree
 
     def build(self) -> "MatrixTree":
-        """(Re)build the tree now, e.g. after the mesh's points moved. Returns self."""
-        if not self._tree.Build():
+        """(Re)build the tree now, e.g. after the mesh's points moved. Returns self.
+
+        RuntimeError with the engine's reason if the build fails; every query then raises it too."""
+        with VtkErrors(self._tree) as errors:
+            ok = self._tree.Build()
+        if not ok:
+            why = errors.last or "building the matrix tree failed"
             if self._tree.GetBackend() == vtkMatrixTree.OPENCL:
-                raise RuntimeError("building the matrix tree with the OpenCL backend failed: no OpenCL "
-                                   "device, a device error, or bad input (the VTK error above says which); "
-                                   "use backend='cpu' or install an OpenCL driver (e.g. pocl-opencl-icd)")
-            raise RuntimeError(f"building the {self._tree.GetTreeTypeAsString()} tree failed: the mesh has "
-                               "non-finite coordinates or bad connectivity, or the tree would pass its depth "
-                               "limit (see the VTK error above)")
+                why += " [use backend='cpu', or install an OpenCL driver (e.g. pocl-opencl-icd)]"
+            raise RuntimeError(why)
         return self
+
+    def _query(self, method, *args):
+        """``vtk_tree.<method>(*args)``; RuntimeError with VTK's message if it reports one (a
+        failed build: every query raises its reason)."""
+        with VtkErrors(self._tree) as errors:
+            out = getattr(self._tree, method)(*args)
+        errors.raise_last(RuntimeError)
+        return out
 
     def stats(self) -> dict:
         """Build statistics: tree, height, triangles, leaves, references, nodes, bytes (the tree
@@ -246,7 +290,7 @@ class MatrixTree:
         """
         p = points3(points, "points")
         out = vtkIntArray()
-        self._tree.FindLeaves(numpy_to_vtk(p, deep=False), out)
+        self._query("FindLeaves", numpy_to_vtk(p, deep=False), out)
         return vtk_to_numpy(out).reshape(-1, 5).copy()
 
     def intersect(self, origins, directions, t_max: float = np.inf):
@@ -255,7 +299,9 @@ class MatrixTree:
         Parameters
         ----------
         origins, directions : array_like, shape (N, 3)
+            A ray with a NaN or infinite component, or a zero direction, misses.
         t_max : float, default: inf
+            At least 0 (``inf`` allowed).
 
         Returns
         -------
@@ -268,9 +314,12 @@ class MatrixTree:
         d = points3(directions, "directions")
         if o.shape != d.shape:
             raise ValueError(f"origins {o.shape} and directions {d.shape} must have the same shape")
+        t_max = float(t_max)
+        if not t_max >= 0:
+            raise ValueError(f"t_max must be >= 0 (inf allowed), got {t_max!r}")
         t = vtkDoubleArray()
         c = vtkIdTypeArray()
-        self._tree.IntersectRays(numpy_to_vtk(o, deep=False), numpy_to_vtk(d, deep=False), float(t_max), t, c)
+        self._query("IntersectRays", numpy_to_vtk(o, deep=False), numpy_to_vtk(d, deep=False), t_max, t, c)
         return vtk_to_numpy(t).copy(), vtk_to_numpy(c).copy()
 
     @property
@@ -294,7 +343,8 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     ----------
     mesh : vtkPolyData, pyvista.PolyData or str
     size : (int, int), default: (800, 800)
-        Image width and height.
+        Image width and height, each 1..16384; refused (ValueError) when the image arrays (about
+        64 bytes per pixel) would not fit in the memory available.
     tree : {"octree", "kdtree", "implicit-kd", "bsp", "hybrid", "sah"}, default: "octree"
         A tree of :class:`MatrixTree` (the matrix octree or kd-tree, the implicit kd-tree or BSP
         tree, the hybrid), or the baseline: a SAH kd-tree (Wald & Havran build, 8-byte pointer
@@ -315,7 +365,8 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     camera : None or sequence, default: None
         ``None`` frames the mesh automatically; otherwise a pyvista-style camera position
         ``[position, focal_point, view_up]`` (optionally with a fourth item, the vertical view
-        angle in degrees, default 30).
+        angle in degrees, 0.01..179, default 30): finite, with the position away from the focal
+        point. A view up along the view direction is replaced by the y (or x) axis.
     shadows : bool, default: True
     threads : int, default: 0
     counters : bool, default: False
@@ -344,9 +395,15 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     (48, 64, 3)
     """
     pd = _as_polydata(mesh)
-    w, h = int(size[0]), int(size[1])
-    if w < 1 or h < 1:
-        raise ValueError(f"size must be two positive integers, got {size!r}")
+    w, h = _checks.image_size(size, _RENDER_BYTES_PER_PIXEL)
+    height = _checks.integer(height, "height", 0, 63, "0 = automatic")
+    threads = _checks.threads(threads)
+    if leaf_scale is not None:
+        leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
+    if camera is not None:
+        if len(camera) not in (3, 4):
+            raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
+        camera = _checks.camera(*camera, up_along_view_ok=True)
     if tree != "sah":
         tree_type(tree, {**RAY_TREES, "sah": None})  # ValueError naming every tree
     if traversal not in _TRAVERSALS:
@@ -364,11 +421,11 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         rc.GetTree().SetTreeType(RAY_TREES[tree])
     rc.SetTriangleTest(_TESTS[triangle_test])
     if leaf_scale is not None:
-        (rc.GetTree().SetHybridLeafScale if tree == "hybrid" else rc.GetTree().SetLeafScale)(float(leaf_scale))
+        (rc.GetTree().SetHybridLeafScale if tree == "hybrid" else rc.GetTree().SetLeafScale)(leaf_scale)
     rc.GetTree().SetBackend(_backend(backend))
-    rc.GetTree().SetHeight(int(height))
-    rc.GetTree().SetNumberOfThreads(int(threads))
-    rc.SetNumberOfThreads(int(threads))
+    rc.GetTree().SetHeight(height)
+    rc.GetTree().SetNumberOfThreads(threads)
+    rc.SetNumberOfThreads(threads)
     rc.SetInputData(pd)
     rc.SetImageSize(w, h)
     rc.SetShadows(bool(shadows))
@@ -376,15 +433,16 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     if camera is None:
         rc.AutoCameraOn()
     else:
-        if len(camera) not in (3, 4):
-            raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
         rc.AutoCameraOff()
-        rc.SetPosition(*map(float, camera[0]))
-        rc.SetFocalPoint(*map(float, camera[1]))
-        rc.SetViewUp(*map(float, camera[2]))
-        rc.SetViewAngle(float(camera[3]) if len(camera) == 4 else 30.0)
+        rc.SetPosition(*camera[0])
+        rc.SetFocalPoint(*camera[1])
+        rc.SetViewUp(*camera[2])
+        rc.SetViewAngle(30.0 if camera[3] is None else camera[3])
     rc.Modified()
-    rc.Update()
+    with VtkErrors(rc.GetTree()) as tree_errors, VtkErrors(rc) as errors:
+        rc.Update()
+    tree_errors.raise_last(RuntimeError)  # the build's reason comes before the caster's summary
+    errors.raise_last(RuntimeError)
     img = rc.GetOutput()
     pdata = img.GetPointData()
 
