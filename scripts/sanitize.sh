@@ -126,15 +126,19 @@ fuzz)
     corpus="build-fuzz/corpus/$h"
     mkdir -p "$corpus"
     regressions="tests/fuzz/regressions/$h"
+    # A harness without regression inputs yet has no folder (git keeps no empty ones).
+    inputs=("$corpus")
+    [[ -d "$regressions" ]] && inputs+=("$regressions")
     # Replay the regressions (-runs=0 runs each given input once), then fuzz from seed 1.
-    if ! ASAN_OPTIONS="detect_leaks=1" build-fuzz/bin/"$h" -runs=0 "$regressions" >"build-fuzz/$h.replay.log" 2>&1; then
+    if [[ -d "$regressions" ]] &&
+      ! ASAN_OPTIONS="detect_leaks=1" build-fuzz/bin/"$h" -runs=0 "$regressions" >"build-fuzz/$h.replay.log" 2>&1; then
       tail -n 20 "build-fuzz/$h.replay.log"
       failed=1
       say "$h: a regression input fails (build-fuzz/$h.replay.log)"
       continue
     fi
     ASAN_OPTIONS="detect_leaks=1" build-fuzz/bin/"$h" -seed=1 -max_total_time="$SECS" -timeout=20 -rss_limit_mb=4096 \
-      -max_len=4096 -print_final_stats=1 -artifact_prefix="build-fuzz/findings/$h-" "$corpus" "$regressions" \
+      -max_len=4096 -print_final_stats=1 -artifact_prefix="build-fuzz/findings/$h-" "${inputs[@]}" \
       >"build-fuzz/$h.log" 2>&1
     rc=$?
     runs="$(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "build-fuzz/$h.log" | grep -Eo '[0-9]+$' || echo '?')"
