@@ -653,17 +653,6 @@ bool cellTypeSupported(uint8_t type, int64_t n) {
   }
 }
 
-const char* cellTypeName(uint8_t type) {
-  static const char* const names[] = {"VTK_EMPTY_CELL", "VTK_VERTEX", "VTK_POLY_VERTEX", "VTK_LINE",
-                                      "VTK_POLY_LINE", "VTK_TRIANGLE", "VTK_TRIANGLE_STRIP", "VTK_POLYGON",
-                                      "VTK_PIXEL", "VTK_QUAD", "VTK_TETRA", "VTK_VOXEL",
-                                      "VTK_HEXAHEDRON", "VTK_WEDGE", "VTK_PYRAMID"};
-  if (type <= kPyramid) return names[type];
-  static thread_local std::string other;
-  other = "cell type " + std::to_string(type);
-  return other.c_str();
-}
-
 int cellDimension(uint8_t type) {
   switch (type) {
     case kVertex:

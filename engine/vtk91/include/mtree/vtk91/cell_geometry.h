@@ -38,6 +38,7 @@
 #include <cstdint>
 #include <limits>
 
+#include "mtree/cells/cells.h"  // cellTypeName
 #include "mtree/core/geometry.h"
 
 namespace mtree {
@@ -58,8 +59,6 @@ struct CellPoint {
 /// Whether the engine evaluates cells of this VTK type with this many points (every linear type,
 /// vertex to pyramid; not the quadratic, higher-order or polyhedral ones).
 bool cellTypeSupported(uint8_t type, int64_t numPoints);
-/// VTK's name of a cell type ("VTK_TETRA"), or "cell type N".
-const char* cellTypeName(uint8_t type);
 /// 0, 1, 2 or 3 for the linear types; -1 for the others.
 int cellDimension(uint8_t type);
 
