@@ -11,16 +11,6 @@
 
 namespace mtree {
 
-/// Squared distance from x to the box (0 inside).
-inline double boxDistance2(Vec3 x, const Box& b) {
-  double d2 = 0;
-  for (int a = 0; a < 3; ++a) {
-    const double d = std::max({b.lo[a] - x[a], 0.0, x[a] - b.hi[a]});
-    d2 += d * d;
-  }
-  return d2;
-}
-
 struct TreeNodeInfo {
   int level = 0;
   int c[3] = {0, 0, 0};
