@@ -64,6 +64,17 @@ def random_points(ds, n, seed, grow=0.05):
     return np.random.default_rng(seed).uniform(b[:, 0] - pad, b[:, 1] + pad, (n, 3))
 
 
+def assert_same_locate(eng, ref, x, min_found):
+    """Both locators' FindCell answers for points x: the same cells, pcoords and weights, bit for
+    bit, with more than min_found points in a cell."""
+    ids, pc, w = eng.find_cells(x, pcoords=True, weights=True)
+    rids, rpc, rw = ref.locate(x, return_pcoords=True, return_weights=True)
+    assert (ids >= 0).sum() > min_found
+    np.testing.assert_array_equal(ids, rids)
+    np.testing.assert_array_equal(pc, rpc)
+    np.testing.assert_array_equal(w, rw[:, :w.shape[1]])
+
+
 GRIDS = ["cfd/brick_tets.su2", "cfd/brick_hex.su2", "cfd/brick_prism.su2", "cfd/brick_pyra.su2",
          "cfd/pipe_flow_tets.vtu"]
 
@@ -77,13 +88,7 @@ def test_locate_gives_the_vtk_modules_cells_and_weights(grid):
     eng, ref = both_locators(grid)
     assert eng.stats()["height"] == ref.vtk_locator.GetTreeHeight()
     assert eng.stats()["references"] == ref.vtk_locator.GetNumberOfReferences()
-    x = random_points(grid, 20000, seed=7)
-    ids, pc, w = eng.find_cells(x, pcoords=True, weights=True)
-    rids, rpc, rw = ref.locate(x, return_pcoords=True, return_weights=True)
-    assert (ids >= 0).sum() > 1000
-    np.testing.assert_array_equal(ids, rids)
-    np.testing.assert_array_equal(pc, rpc)
-    np.testing.assert_array_equal(w, rw[:, :w.shape[1]])
+    assert_same_locate(eng, ref, random_points(grid, 20000, seed=7), min_found=1000)
 
 
 def test_segments_and_closest_points_match_on_a_grid(grid):
@@ -173,12 +178,7 @@ def test_surface_locator_matches_on_the_bunny(bunny):
     diag = np.linalg.norm(np.ptp(pts, axis=0))
     x = np.einsum("nk,nka->na", rng.dirichlet([1, 1, 1], 5000), tris) + \
         rng.normal(scale=1e-3 * diag, size=(5000, 3))
-    ids, pc, w = eng.find_cells(x, pcoords=True, weights=True)
-    rids, rpc, rw = ref.locate(x, return_pcoords=True, return_weights=True)
-    assert (ids >= 0).sum() > 100
-    np.testing.assert_array_equal(ids, rids)
-    np.testing.assert_array_equal(pc, rpc)
-    np.testing.assert_array_equal(w, rw[:, :w.shape[1]])
+    assert_same_locate(eng, ref, x, min_found=100)
 
 
 def test_surface_tree_rays_and_render_equal_the_vtk_modules(bunny):

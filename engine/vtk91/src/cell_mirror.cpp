@@ -322,11 +322,7 @@ int polyVertexEvaluatePosition(const double* pts, int numPts, const double x[3],
     const double* X = pts + 3 * i;
     const double dist2 = distance2(X, x);
     if (dist2 < minDist2) {
-      if (closestPoint) {
-        closestPoint[0] = X[0];
-        closestPoint[1] = X[1];
-        closestPoint[2] = X[2];
-      }
+      setClosest(closestPoint, X);
       minDist2 = dist2;
       subId = i;
     }
@@ -354,11 +350,7 @@ int polyLineEvaluatePosition(const double* pts, int numPts, const double x[3], d
         lineEvaluatePosition(pts + 3 * i, pts + 3 * (i + 1), x, closest, ignoreId, pc, dist2, lineWeights);
     if (status != -1 && dist2 < minDist2) {
       returnStatus = status;
-      if (closestPoint) {
-        closestPoint[0] = closest[0];
-        closestPoint[1] = closest[1];
-        closestPoint[2] = closest[2];
-      }
+      setClosest(closestPoint, closest);
       minDist2 = dist2;
       subId = i;
       pcoords[0] = pc[0];
@@ -581,11 +573,7 @@ int triangleStripEvaluatePosition(const double* pts, int numPts, const double x[
                                                 ignoreId, pc, dist2, tempWeights);
     if (status != -1 && dist2 < minDist2) {
       returnStatus = status;
-      if (closestPoint) {
-        closestPoint[0] = closest[0];
-        closestPoint[1] = closest[1];
-        closestPoint[2] = closest[2];
-      }
+      setClosest(closestPoint, closest);
       subId = i;
       pcoords[0] = pc[0];
       pcoords[1] = pc[1];
@@ -955,9 +943,7 @@ int polygonEvaluatePosition(const double* pts, int numPts, const double x[3], do
     for (int i = 0; i < numPts; i++) {
       const double dist2 = distanceToLine(x, pts + 3 * i, pts + 3 * ((i + 1) % numPts), t, closest);
       if (dist2 < minDist2) {
-        closestPoint[0] = closest[0];
-        closestPoint[1] = closest[1];
-        closestPoint[2] = closest[2];
+        setClosest(closestPoint, closest);
         minDist2 = dist2;
       }
     }
@@ -1024,9 +1010,7 @@ int tetraEvaluatePosition(const double* pts, const double x[3], double* closestP
       const int* f = topo.face[i];
       triangleEvaluatePosition(pts + 3 * f[0], pts + 3 * f[1], pts + 3 * f[2], x, closest, sub, pc, dist2, w);
       if (dist2 < minDist2) {
-        closestPoint[0] = closest[0];
-        closestPoint[1] = closest[1];
-        closestPoint[2] = closest[2];
+        setClosest(closestPoint, closest);
         minDist2 = dist2;
       }
     }

@@ -30,6 +30,16 @@ inline double determinant3x3(const double c1[3], const double c2[3], const doubl
          c2[0] * c1[1] * c3[2] - c3[0] * c2[1] * c1[2];
 }
 
+/// closestPoint = p where a closest point is asked (the running nearest of VTK's composite
+/// cells and of its closest-point loops over edges or faces).
+inline void setClosest(double* closestPoint, const double p[3]) {
+  if (closestPoint) {
+    closestPoint[0] = p[0];
+    closestPoint[1] = p[1];
+    closestPoint[2] = p[2];
+  }
+}
+
 /// Where a closest point is asked: x itself at distance 0 (VTK's answer for a point inside a
 /// volume cell). dist2 is left alone otherwise, as VTK leaves it.
 inline void closestIsX(const double x[3], double* closestPoint, double& dist2) {
