@@ -171,6 +171,11 @@ int vtkMatrixTreeLocatorProcessor::AllHits(
 vtkIdType vtkMatrixTreeLocatorProcessor::ClosestPoint(vtkDataSet* ds, const double x[3], double radius,
   double closestPoint[3], vtkGenericCell* cell, vtkIdType& cellId, int& subId, double& dist2, int& inside) const
 {
+  // A non-finite query point is no distance from anything: no closest point (the caller's -1).
+  if (!(std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2])))
+  {
+    return 0;
+  }
   vtkMatrixTreeCellBridge::Oracle o(ds, this->Core.cells, cell, this->Tuning.EngineCellEvaluation);
   const double radius2 = std::isinf(radius) ? std::numeric_limits<double>::infinity() : radius * radius;
   mtree::vtk91::ClosestAnswer a;

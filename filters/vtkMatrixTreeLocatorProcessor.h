@@ -81,7 +81,7 @@ public:
     double pcoords[3], int& subId, vtkIdType& cellId, vtkGenericCell* cell) const;
   /** Every hit of the segment, sorted by t then cell id; the number of hits. */
   int AllHits(vtkDataSet* ds, const double p1[3], const double p2[3], vtkPoints* points, vtkIdList* cellIds) const;
-  /** FindClosestPointWithinRadius (a non-empty tree, radius >= 0). */
+  /** FindClosestPointWithinRadius (a non-empty tree, radius >= 0); 0 for a non-finite x. */
   vtkIdType ClosestPoint(vtkDataSet* ds, const double x[3], double radius, double closestPoint[3],
     vtkGenericCell* cell, vtkIdType& cellId, int& subId, double& dist2, int& inside) const;
   /** The cells whose bounds meet bbox (xmin xmax ymin ymax zmin zmax), ascending. */

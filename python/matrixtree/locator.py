@@ -15,6 +15,7 @@ from vtkmodules.vtkCommonDataModel import vtkDataSet
 
 from matrixtree_vtk import vtkMatrixTreeLocator
 
+from matrixtree import _checks
 from matrixtree._util import VtkErrors, check_backend, points3, tree_type, vtk_points
 
 __all__ = ["CellLocator", "cached_memory", "release_cached_memory"]
@@ -66,6 +67,24 @@ class CellLocator:
         device number, or part of a device name; default: ``$MATRIXTREE_OPENCL_DEVICE``, else the
         first GPU, else the first device.
 
+    Raises
+    ------
+    ValueError
+        A setting out of its range (``height`` 0..63, ``threads`` 0..4096), an unknown ``tree``
+        or ``backend``, or a data set without cells.
+    RuntimeError
+        The build failed; the message is the engine's reason: a coordinate that is NaN, inf or
+        beyond +-1e30, points spanning less than 1e-30, a cell referring to a missing point, or a
+        ``height`` whose leaf level would need more than 1 GiB. Should a later rebuild fail (the
+        data set changed, then ``vtk_locator.BuildLocator()``), every query raises RuntimeError
+        with that same reason.
+
+    Notes
+    -----
+    Query points (and segment ends) that are NaN or infinite are not an error: such a point
+    lies in no cell (-1), a segment through one hits nothing, and it has no closest point
+    (cell -1, point NaN, squared distance inf).
+
     See Also
     --------
     matrixtree_vtk.vtkMatrixTreeLocator : the VTK class underneath (``.vtk_locator``).
@@ -89,20 +108,32 @@ class CellLocator:
             raise TypeError(f"dataset must be a vtkDataSet (or a pyvista mesh), got {type(dataset).__name__}")
         tree_id = tree_type(tree)
         check_backend(backend)
+        height = _checks.integer(height, "height", 0, 63, "levels below the root, 0 = automatic")
+        threads = _checks.threads(threads)
         if dataset.GetNumberOfCells() == 0:
             raise ValueError("dataset has no cells")
         self.dataset = dataset
         self.vtk_locator = vtkMatrixTreeLocator()
         self.vtk_locator.SetTreeType(tree_id)
-        self.vtk_locator.SetHeight(int(height))
-        self.vtk_locator.SetNumberOfThreads(int(threads))
+        self.vtk_locator.SetHeight(height)
+        self.vtk_locator.SetNumberOfThreads(threads)
         if backend == "opencl":
             self.vtk_locator.SetBackendToOpenCL()
             if device is not None:
                 self.vtk_locator.SetOpenCLDevice(str(device))
         self.backend = backend
         self.vtk_locator.SetDataSet(dataset)
-        self.vtk_locator.BuildLocator()
+        with VtkErrors(self.vtk_locator) as errors:
+            self.vtk_locator.BuildLocator()
+        errors.raise_last(RuntimeError)
+
+    def _query(self, method, *args) -> None:
+        """Call ``vtk_locator.<method>(*args)``; RuntimeError with VTK's message if it reports an
+        error (a failed build: every query then raises its reason)."""
+        with VtkErrors(self.vtk_locator) as errors:
+            getattr(self.vtk_locator, method)(*args)
+        opencl = self.backend == "opencl" and method == "FindCells"
+        errors.raise_last(RuntimeError, " [CellLocator: backend='cpu' needs no OpenCL]" if opencl else "")
 
     def locate(self, points, *, return_pcoords: bool = False, return_weights: bool = False):
         """The cell containing each point (VTK's FindCell), or -1.
@@ -142,16 +173,12 @@ class CellLocator:
         ids = vtkIdTypeArray()
         pc = vtkDoubleArray() if return_pcoords else None
         w = vtkDoubleArray() if return_weights else None
-        with VtkErrors(self.vtk_locator) as errors:
-            self.vtk_locator.FindCells(vtk_points(p), ids, pc, w)
-        if errors.messages:
-            hint = " [CellLocator: backend='cpu' needs no OpenCL]" if self.backend == "opencl" else ""
-            raise RuntimeError(errors.last + hint)
+        self._query("FindCells", vtk_points(p), ids, pc, w)
         out = [vtk_to_numpy(ids).astype(np.int64, copy=True)]
         if return_pcoords:
             out.append(vtk_to_numpy(pc).reshape(-1, 3).copy())
         if return_weights:
-            out.append(vtk_to_numpy(w).reshape(len(p), -1).copy())
+            out.append(vtk_to_numpy(w).reshape(len(p), w.GetNumberOfComponents()).copy())
         return out[0] if len(out) == 1 else tuple(out)
 
     def trace(self, origins, directions=None, *, ends=None, length: float = 1.0, tolerance: float = 0.0):
@@ -171,7 +198,7 @@ class CellLocator:
         length : float, default: 1.0
             Scale of ``directions``.
         tolerance : float, default: 0.0
-            VTK's intersection tolerance.
+            VTK's intersection tolerance: finite, >= 0.
 
         Returns
         -------
@@ -193,12 +220,16 @@ class CellLocator:
         o = points3(origins, "origins")
         if (directions is None) == (ends is None):
             raise ValueError("give exactly one of directions and ends")
-        e = points3(ends, "ends") if ends is not None else o + float(length) * points3(directions, "directions")
+        tolerance = _checks.real(tolerance, "tolerance", 0.0)
+        if ends is not None:
+            e = points3(ends, "ends")
+        else:
+            e = o + _checks.real(length, "length", 0.0, lo_open=True) * points3(directions, "directions")
         if e.shape != o.shape:
             raise ValueError(f"origins {o.shape} and ends/directions {e.shape} differ in shape")
         t, ids, x = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
-        self.vtk_locator.IntersectSegments(numpy_to_vtk(o, deep=True), numpy_to_vtk(e, deep=True),
-                                           float(tolerance), t, ids, x)
+        self._query("IntersectSegments", numpy_to_vtk(o, deep=True), numpy_to_vtk(e, deep=True), tolerance,
+                    t, ids, x)
         return (vtk_to_numpy(t).copy(), vtk_to_numpy(ids).astype(np.int64, copy=True),
                 vtk_to_numpy(x).reshape(-1, 3).copy())
 
@@ -215,9 +246,9 @@ class CellLocator:
         closest : numpy.ndarray, shape (n, 3)
             Closest points.
         cell_ids : numpy.ndarray
-            The cell each closest point lies on.
+            The cell each closest point lies on; -1 for a NaN or infinite query point.
         dist2 : numpy.ndarray
-            Squared distances.
+            Squared distances (inf where the cell is -1; the closest point is NaN there).
 
         Examples
         --------
@@ -229,7 +260,7 @@ class CellLocator:
         """
         p = points3(points, "points")
         cp, ids, d2 = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
-        self.vtk_locator.FindClosestPoints(vtk_points(p), cp, ids, d2)
+        self._query("FindClosestPoints", vtk_points(p), cp, ids, d2)
         return (vtk_to_numpy(cp).reshape(-1, 3).copy(), vtk_to_numpy(ids).astype(np.int64, copy=True),
                 vtk_to_numpy(d2).copy())
 

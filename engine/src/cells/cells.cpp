@@ -5,6 +5,7 @@
 #include <cstring>
 #include <string>
 
+#include "mtree/core/coordinate_range.h"
 #include "mtree/core/parallel.h"
 
 namespace mtree {
@@ -163,10 +164,10 @@ void CellSet::validateViewed(const I* off, const I* conn, size_t connSize) const
 }
 
 void CellSet::validate() const {
-  const size_t nc = 3 * pts_.n;
-  for (size_t i = 0; i < nc; ++i)
-    if (!std::isfinite(floatPoints_ ? double(pts_.fp[i]) : pts_.dp[i]))
-      throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
+  if (floatPoints_)
+    checkCoordinateRange(pts_.fp, pts_.n, "CellSet");
+  else
+    checkCoordinateRange(pts_.dp, pts_.n, "CellSet");
 }
 
 void CellSet::dropUniformOffsets() {

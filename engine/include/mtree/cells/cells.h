@@ -96,7 +96,7 @@ class CellSet {
   CellSet() = default;
   /// points: 3 doubles per point; offsets: numCells + 1 entries into connectivity; types: one
   /// VTK cell type per cell. Throws std::invalid_argument on inconsistent arrays, an index out of
-  /// range, or a non-finite coordinate, and std::length_error past 2^32 - 1 connectivity
+  /// range, or a coordinate out of checkCoordinateRange's range, and std::length_error past 2^32 - 1 connectivity
   /// entries or points (indices are stored in 32 bits). threads: OpenMP threads for the cached
   /// bounds (0 = OpenMP's default).
   CellSet(std::vector<double> points, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,

@@ -231,7 +231,11 @@ MT_ALWAYS_INLINE bool LocatorCore::cellContains(size_t c, const double x[3], O& 
       return o.contains(c, x, pts, pcoords, weights);
     }
   }
-  return o.contains(c, x, nullptr, pcoords, weights);
+  // A cell of dimension < 3 (a vertex, line or polygon in a 3-D grid, where EvaluatePosition's
+  // "inside" only means that x projects into the cell) contains x only within its bounds, as
+  // vtkCellLocator decides.
+  return o.contains(c, x, nullptr, pcoords, weights) &&
+         (cellTypeDimension(cells.type(c)) == 3 || cells.exactBounds(c).contains(Vec3(x)));
 }
 
 template <class O>
