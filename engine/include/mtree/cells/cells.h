@@ -58,6 +58,13 @@ struct CellTopology {
 };
 const CellTopology* cellTopology(uint8_t type);  // nullptr: no table (bounding box is used)
 
+/// The dimension of a VTK cell type: 0 (vertices) to 3 (volumes), for every type a VTK 9.1 data
+/// set can hold (vtkGenericCell instantiates it: linear, quadratic, Lagrange, Bezier, convex
+/// point sets, polyhedra); -1 for the empty cell and other codes.
+int cellTypeDimension(uint8_t type);
+/// VTK's name of a linear cell type ("VTK_TETRA"), else "cell type N".
+const char* cellTypeName(uint8_t type);
+
 /// Which separating axes the exact overlap test uses. Faces: the box normals (implicit in the
 /// candidate range) and the cell's face normals — conservative (it may keep a leaf that only
 /// an edge-cross axis would separate), about 5x cheaper for tetrahedra. All: also the cross
