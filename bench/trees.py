@@ -13,6 +13,7 @@ pixel. Tables are printed per mesh and written as markdown (--md) and JSON (--js
     .venv/bin/python bench/trees.py --md docs/trees_tables.md --json out/bench_trees.json
     xvfb-run -a .venv/bin/python bench/trees.py --pictures docs/images    # the split-plane pictures
     .venv/bin/python bench/trees.py --summary out/bench_trees.json      # docs/trees.md's tables
+    xvfb-run -a .venv/bin/python bench/trees.py --product --scene utah_hand   # through matrixtree.render
 
 Cameras are bench/rays.py's (fit_camera, its per-scene views) at --size (default 512 x 512).
 """
@@ -41,6 +42,8 @@ DEPTH_COLS = ["max_depth", "depth", "nodes", "sah_cost", "pointer_node_MiB", "im
 RENDER_COLS = ["method", "traversal", "layout", "build_cpu_ms", "convert_cpu_ms", "render_cpu_ms",
                "render_vs_sah_stack", "node_visits_per_ray", "tri_tests_per_ray", "leaves_per_ray", "MiB",
                "mismatches_vs_brute_force", "rays_checked"]
+PRODUCT_COLS = ["tree", "build_cpu_ms", "render_cpu_ms", "render_vs_octree", "node_visits_per_ray",
+                "triangle_tests_per_ray", "hits", "pixels_differing_from_octree", "MiB", "pointer_tree_MiB"]
 CL_COLS = ["method", "traversal", "device", "render_wall_ms", "pixels", "hit_mismatches_vs_cpu",
            "shading_mismatches_vs_cpu", "node_visits_cpu", "node_visits_device", "mismatches_vs_brute_force"]
 
@@ -226,6 +229,58 @@ def pictures(spec: str, out_dir: str, size, levels: int) -> list:
     return written
 
 
+def product(spec: str, size, trees) -> list:
+    """Every tree through the product path (matrixtree.render: vtkMatrixTreeRayCaster and
+    vtkMatrixTree, one thread), CPU clock of the process: the first render (build + render), then
+    a second one with the same caster (no rebuild) for the render time, then a third, untimed one
+    with counters for the node visits and triangle tests. Pixels whose first hit
+    differs from the octree's image are counted (0 expected)."""
+    import matrixtree
+
+    import numpy as np
+    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+
+    name, tris, frames = rays.load_scene(spec, 1)  # the triangles trees_bench renders
+    pts = vtkPoints()
+    pts.SetData(numpy_to_vtk(np.ascontiguousarray(frames[0], dtype=np.float64), deep=True))
+    cells = vtkCellArray()
+    cells.SetData(numpy_to_vtkIdTypeArray(np.arange(0, 3 * len(tris) + 1, 3, dtype=np.int64), deep=True),
+                  numpy_to_vtkIdTypeArray(np.ascontiguousarray(tris, dtype=np.int64).ravel(), deep=True))
+    mesh = vtkPolyData()
+    mesh.SetPoints(pts)
+    mesh.SetPolys(cells)
+    cam = rays.fit_camera(name, frames, size)
+    camera = [tuple(cam["eye"]), tuple(cam["target"]), tuple(cam["up"]), cam["fovy"]]
+    rows, ref = [], None
+    for tree in trees:
+        t0 = time.process_time()
+        first = matrixtree.render(mesh, size=tuple(size), tree=tree, camera=camera, threads=1)
+        t1 = time.process_time()
+        img = matrixtree.render(mesh, size=tuple(size), tree=tree, camera=camera, threads=1, caster=first["caster"])
+        t2 = time.process_time()
+        counted = matrixtree.render(mesh, size=tuple(size), tree=tree, camera=camera, threads=1,
+                                    caster=first["caster"], counters=True)  # untimed: the counts only
+        assert first["rebuilt"] and not img["rebuilt"] and not counted["rebuilt"]
+        if ref is None:
+            ref = img
+        da, db = img["depth"].astype(float), ref["depth"].astype(float)
+        with np.errstate(invalid="ignore"):  # inf - inf where both miss
+            same = (np.isinf(da) & np.isinf(db)) | (np.abs(da - db) <= 1e-5 * np.maximum(1.0, np.abs(db)))
+        t = first["caster"].GetTree()
+        rows.append({"mesh": name, "tree": tree, "build_cpu_ms": 1e3 * ((t1 - t0) - (t2 - t1)),
+                     "render_cpu_ms": 1e3 * (t2 - t1), "node_visits_per_ray": counted["node_visits_per_ray"],
+                     "triangle_tests_per_ray": counted["triangle_tests_per_ray"], "hits": img["hits"],
+                     "pixels_differing_from_octree": int(np.sum(~same)),
+                     "MiB": _mib(t.GetMemorySize()) if tree != "sah" else None,
+                     "pointer_tree_MiB": _mib(t.GetPointerTreeMemorySize()) if tree in ("implicit-kd", "bsp") else None})
+    base = rows[0]["render_cpu_ms"]
+    for r in rows:
+        r["render_vs_octree"] = r["render_cpu_ms"] / base
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -247,6 +302,10 @@ def main(argv=None) -> int:
     ap.add_argument("--pictures", help="only write the pictures of the split planes into this folder "
                     "(e.g. docs/images; run under xvfb-run -a)")
     ap.add_argument("--picture-levels", type=int, default=7, help="deepest level of planes drawn")
+    ap.add_argument("--product", action="store_true", help="only render every tree through matrixtree.render "
+                    "(the VTK classes; run under xvfb-run -a) and write its table to --json")
+    ap.add_argument("--product-trees", default="octree,kdtree,implicit-kd,bsp,hybrid,sah",
+                    help="trees of --product (the first is the reference)")
     ap.add_argument("--summary", metavar="JSON", help="only print docs/trees.md's cross-mesh tables from a --json result")
     args = ap.parse_args(argv)
     if args.summary:
@@ -255,6 +314,20 @@ def main(argv=None) -> int:
         return 0
     if not os.path.exists(BIN):
         raise SystemExit(f"{BIN} not found: build the project first (cmake --build build)")
+    if args.product:
+        load = os.getloadavg()
+        rows = []
+        for spec in args.scene or ["utah_hand"]:
+            rows += product(spec, args.size, args.product_trees.split(","))
+        print(f"Through matrixtree.render, one thread, CPU clock, {args.size[0]}x{args.size[1]}, "
+              f"load average at start {load[0]:.1f}:\n")
+        print(markdown(rows, ["mesh"] + PRODUCT_COLS))
+        os.makedirs(os.path.dirname(os.path.abspath(args.json)) or ".", exist_ok=True)
+        with open(args.json, "w") as f:
+            json.dump({"machine": machine(), "load_at_start": load[0], "size": list(args.size), "product": rows}, f,
+                      indent=1)
+        print(f"\nwrote {args.json}")
+        return 0
     if args.pictures:
         for path in pictures((args.scene or ["utah_hand"])[0], args.pictures, args.size, args.picture_levels):
             print(f"wrote {path}")

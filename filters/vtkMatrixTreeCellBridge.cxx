@@ -7,25 +7,6 @@
 
 namespace vtkMatrixTreeCellBridge
 {
-namespace
-{
-// Whether some cell's type satisfies pred: one type is asked once when all cells share it,
-// else the cells are scanned in order until pred holds.
-template <class Pred>
-bool AnyCellType(const mtree::CellSet& cells, Pred pred)
-{
-  const size_t scan = cells.uniformType() ? std::min<size_t>(cells.size(), 1) : cells.size();
-  for (size_t c = 0; c < scan; ++c)
-  {
-    if (pred(cells.type(c)))
-    {
-      return true;
-    }
-  }
-  return false;
-}
-}
-
 bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
   double tol, double& t, double x[3], double pcoords[3], int& subId)
 {
@@ -79,28 +60,6 @@ bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const d
   }
   mtree::vtk91::faceHitPcoords(type, face, pc, pcoords);
   return true;
-}
-
-bool NoVolumeCells(const mtree::CellSet& cells)
-{
-  // Each type's dimension from VTK's own cell class, once per type met; a first 3-D cell ends
-  // the scan.
-  signed char dim[256];
-  std::fill(dim, dim + 256, static_cast<signed char>(-1));
-  return !AnyCellType(cells, [&dim](uint8_t t) {
-    if (dim[t] < 0)
-    {
-      vtkSmartPointer<vtkCell> cell = vtkSmartPointer<vtkCell>::Take(vtkGenericCell::InstantiateCell(t));
-      dim[t] = static_cast<signed char>(cell ? cell->GetCellDimension() : 0);
-    }
-    return dim[t] == 3;
-  });
-}
-
-bool HasConvexPolyhedra(const mtree::CellSet& cells)
-{
-  return AnyCellType(cells,
-    [](uint8_t t) { return t == mtree::kHexahedron || t == mtree::kWedge || t == mtree::kPyramid; });
 }
 
 void PrepareForThreads(vtkDataSet* ds)

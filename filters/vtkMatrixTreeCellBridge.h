@@ -1,11 +1,11 @@
 // Private to the MatrixTree::Filters module (not wrapped, not installed): between the engine's
 // cells (mtree::CellSet, VTK's type codes and point order) and VTK's own cell classes, for
-// vtkMatrixTreeLocator's queries. Every answer a query returns is VTK's: what the engine
-// decides without VTK (mtree/vtk91: VTK 9.1's arithmetic recomputed in VTK's order) gives VTK's
-// bits, and everything else goes to the vtkCell.
+// vtkMatrixTreeLocator's queries: the Oracle of mtree::vtk91::LocatorCore (locator_core.h) that
+// settles what the engine's fast decisions leave open with VTK's own vtkCell, so every answer a
+// query returns is VTK's.
 //
-// The hot functions (GatherPoints, FillCell, CellContains, RecomputedTriangleHit) are inline:
-// they run per candidate cell inside the queries' loops.
+// The hot functions (FillCell and the Oracle's) are inline: they run per candidate cell inside
+// the queries' loops.
 #ifndef vtkMatrixTreeCellBridge_h
 #define vtkMatrixTreeCellBridge_h
 
@@ -14,6 +14,9 @@
 #include "mtree/vtk91/cell_eval.h"
 #include "mtree/vtk91/cell_faces.h"
 #include "mtree/vtk91/face_hit.h"
+#include "mtree/vtk91/locator_core.h"
+
+#include "vtkMatrixTreeQueryStatistics.h"
 
 #include "vtkCellType.h"
 #include "vtkDataSet.h"
@@ -25,6 +28,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <vector>
 
 namespace vtkMatrixTreeCellBridge
 {
@@ -39,19 +43,6 @@ constexpr bool kVtk91 =
 
 /** VTK's tolerance on a tetrahedron's barycentric coordinates in EvaluatePosition. */
 constexpr double kTetraTolerance = 1e-3;
-
-/** Cell `id`'s first n points as the engine reads them, into pts (3 doubles each). */
-inline void GatherPoints(const mtree::CellSet& cells, size_t id, int64_t n, double* pts)
-{
-  const mtree::CellSet::PointIds pid = cells.cellPointIds(id);
-  for (int64_t k = 0; k < n; ++k)
-  {
-    const mtree::Vec3 p = cells.point(pid[k]);
-    pts[3 * k] = p.x;
-    pts[3 * k + 1] = p.y;
-    pts[3 * k + 2] = p.z;
-  }
-}
 
 /**
  * Cell `id` into `cell` with the same type, point ids and coordinates as vtkDataSet::GetCell
@@ -112,66 +103,8 @@ inline void FillCell(vtkDataSet* ds, const mtree::CellSet& cells, vtkIdType id, 
   }
   else
   {
-    GatherPoints(cells, c, n, out);
+    mtree::vtk91::gatherCellPoints(cells, c, n, out);
   }
-}
-
-/**
- * Does cell `id` contain x, as VTK's EvaluatePosition decides? If so the cell is filled into
- * `cell` and pcoords and weights are VTK's. engineEval: the linear volume cells are evaluated by
- * mtree::vtk91::evaluateLinearCell (VTK's arithmetic; VTK is asked where a different rounding
- * could change the answer) and only a containing cell is filled; otherwise every cell is filled
- * and handed to VTK (a tetrahedron after a pre-test that only rejects what VTK would: outside
- * barycentric tolerance 1e-2, where VTK accepts 1e-3).
- */
-MT_ALWAYS_INLINE bool CellContains(vtkDataSet* ds, const mtree::CellSet& cells, const double x[3], vtkIdType id,
-  vtkGenericCell* cell, double pcoords[3], double* weights, bool engineEval)
-{
-  const size_t c = static_cast<size_t>(id);
-  const uint8_t type = cells.type(c);
-  double closest[3], dist2;
-  int subId = 0;
-  if (engineEval)
-  {
-    const int64_t np = cells.numCellPoints(c);
-    if (mtree::vtk91::cellEvaluable(type, np))
-    {
-      double pts[3 * mtree::CellSet::kMaxLocalPoints];
-      GatherPoints(cells, c, np, pts);
-      const mtree::vtk91::PointInCell v = mtree::vtk91::evaluateLinearCell(type, pts, x, pcoords, weights);
-      if (v == mtree::vtk91::PointInCell::kOutside)
-      {
-        return false;
-      }
-      FillCell(ds, cells, id, cell, pts);
-      return v == mtree::vtk91::PointInCell::kInside ||
-        cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
-    }
-  }
-  else if (type == mtree::kTetra && !cells.tetraMayContain(c, mtree::Vec3(x), 0.01))
-  {
-    return false;
-  }
-  FillCell(ds, cells, id, cell);
-  return cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
-}
-
-/**
- * Cell `id`'s vtkTriangle::IntersectWithLine at tolerance 0 recomputed by mtree::vtk91 (the same
- * verdict and bits) where the cell is a triangle and this is VTK 9.1; kAskVtk otherwise, and
- * where the recomputation leaves the answer to VTK.
- */
-inline mtree::vtk91::FaceHit RecomputedTriangleHit(const mtree::CellSet& cells, vtkIdType id, const double p1[3],
-  const double p2[3], mtree::vtk91::LineHit& h)
-{
-  const size_t c = static_cast<size_t>(id);
-  if (!kVtk91 || cells.type(c) != mtree::kTriangle || cells.numCellPoints(c) != 3)
-  {
-    return mtree::vtk91::FaceHit::kAskVtk;
-  }
-  double q[3][3];
-  GatherPoints(cells, c, 3, &q[0][0]);
-  return mtree::vtk91::triangleLineHit(q[0], q[1], q[2], p1, p2, h);
 }
 
 /**
@@ -188,15 +121,97 @@ inline mtree::vtk91::FaceHit RecomputedTriangleHit(const mtree::CellSet& cells, 
 bool CertainFaceHit(const mtree::CellSet& cells, vtkIdType id, int face, const double p1[3], const double p2[3],
   double tol, double& t, double x[3], double pcoords[3], int& subId);
 
-/** Whether no cell is 3-D (a surface; lines and vertices too), by VTK's cell classes. */
-bool NoVolumeCells(const mtree::CellSet& cells);
-
-/** Whether any cell is a hexahedron, wedge or pyramid (the cells mtree::ConvexShapeMemo serves). */
-bool HasConvexPolyhedra(const mtree::CellSet& cells);
-
 /** The data set's cells made safe to fetch from many threads (polydata builds its cell links on
  * the first GetCell). */
 void PrepareForThreads(vtkDataSet* ds);
+
+/**
+ * The LocatorCore Oracle of vtkMatrixTreeLocator: a cell the engine's fast decisions leave open
+ * is filled into the query's vtkGenericCell (FillCell) and asked of VTK. One per query (or per
+ * thread of a batch): it remembers which cell the generic cell holds, so that the answer's cell
+ * is filled once. engineEval: the tuning's EngineCellEvaluation (off: every FindCell candidate
+ * goes to VTK, a tetrahedron after a pre-test that only rejects what VTK would: outside
+ * barycentric tolerance 1e-2, where VTK accepts 1e-3).
+ */
+class Oracle
+{
+public:
+  static constexpr bool kCounting = vtkMatrixTreeQueryStatistics::kQueryStats;
+
+  Oracle(vtkDataSet* ds, const mtree::CellSet& cells, vtkGenericCell* cell, bool engineEval)
+    : DS(ds)
+    , Cells(cells)
+    , Cell(cell)
+    , EngineEval(engineEval)
+  {
+  }
+
+  bool fastEvaluation() const { return this->EngineEval; }
+  bool mirrorIsVtk() const { return kVtk91; }
+  mtree::QuadSplit quadSplit() const { return kVtkQuadSplit; }
+  void count(mtree::vtk91::LocatorEvent e, uint64_t n) const
+  {
+    vtkMatrixTreeQueryStatistics::CountQuery(e, n);
+  }
+
+  bool contains(size_t c, const double x[3], const double* pts, double pcoords[3], double* weights)
+  {
+    if (!pts && !this->EngineEval && this->Cells.type(c) == mtree::kTetra &&
+      !this->Cells.tetraMayContain(c, mtree::Vec3(x), 0.01))
+    {
+      return false;
+    }
+    this->Fill(c, pts);
+    double closest[3], dist2;
+    int subId = 0;
+    return this->Cell->EvaluatePosition(x, closest, subId, pcoords, dist2, weights) == 1;
+  }
+  void found(size_t c, const double* pts) { this->Fill(c, pts); }
+  int intersect(size_t c, const double p1[3], const double p2[3], double tol, double& t, double x[3],
+    double pcoords[3], int& subId)
+  {
+    this->Fill(c, nullptr);
+    return this->Cell->IntersectWithLine(p1, p2, tol, t, x, pcoords, subId);
+  }
+  int intersectFace(size_t c, int face, const double p1[3], const double p2[3], double tol, double& t, double x[3],
+    double pcoords[3], int& subId)
+  {
+    return CertainFaceHit(this->Cells, static_cast<vtkIdType>(c), face, p1, p2, tol, t, x, pcoords, subId) ? 1 : 0;
+  }
+  void holding(size_t c)
+  {
+    if (this->Filled != static_cast<vtkIdType>(c))
+    {
+      this->Fill(c, nullptr);
+    }
+  }
+  int closest(size_t c, const double x[3], double cp[3], int& subId, double& dist2)
+  {
+    this->DS->GetCell(static_cast<vtkIdType>(c), this->Cell);
+    this->Filled = static_cast<vtkIdType>(c);
+    const size_t n = static_cast<size_t>(this->Cell->GetNumberOfPoints());
+    if (this->Weights.size() < n)
+    {
+      this->Weights.resize(n);
+    }
+    double pcoords[3];
+    return this->Cell->EvaluatePosition(x, cp, subId, pcoords, dist2, this->Weights.data());
+  }
+
+private:
+  void Fill(size_t c, const double* pts)
+  {
+    FillCell(this->DS, this->Cells, static_cast<vtkIdType>(c), this->Cell, pts);
+    this->Filled = static_cast<vtkIdType>(c);
+  }
+
+  vtkDataSet* DS;
+  const mtree::CellSet& Cells;
+  vtkGenericCell* Cell;
+  bool EngineEval;
+  vtkIdType Filled = -1; // the cell the generic cell holds
+  std::vector<double> Weights;
+};
 }
 
 #endif

@@ -7,7 +7,6 @@
 #include "vtkPolyData.h"
 #include "vtkSmartPointer.h"
 
-#include <cmath>
 
 namespace vtkMatrixTreeConvert
 {
@@ -28,14 +27,6 @@ bool ToTriangleMesh(vtkPolyData* pd, mtree::TriangleMesh& mesh, std::vector<vtkI
   for (vtkIdType i = 0; i < np; ++i)
   {
     points->GetPoint(i, &pts[3 * i]);
-    for (int k = 0; k < 3; ++k)
-    {
-      if (!std::isfinite(pts[3 * i + k]))
-      {
-        error = "point " + std::to_string(i) + " has a non-finite coordinate (NaN or inf)";
-        return false;
-      }
-    }
   }
   if (np > 0)
   {

@@ -165,11 +165,11 @@ void vtkMatrixTreeLocator::FreeSearchStructure()
 //------------------------------------------------------------------------------
 bool vtkMatrixTreeLocator::InsideCellBounds(double x[3], vtkIdType cellId)
 {
-  if (!this->EnsureBuilt() || cellId < 0 || cellId >= static_cast<vtkIdType>(this->Processor->Cells.size()))
+  if (!this->EnsureBuilt() || cellId < 0 || cellId >= static_cast<vtkIdType>(this->Processor->Core.cells.size()))
   {
     return false;
   }
-  return this->Processor->Cells.exactBounds(static_cast<size_t>(cellId)).contains(mtree::Vec3(x));
+  return this->Processor->Core.cells.exactBounds(static_cast<size_t>(cellId)).contains(mtree::Vec3(x));
 }
 
 vtkIdType vtkMatrixTreeLocator::FindCell(
@@ -219,7 +219,7 @@ vtkIdType vtkMatrixTreeLocator::FindClosestPointWithinRadius(double x[3], double
   subId = 0;
   inside = 0;
   dist2 = VTK_DOUBLE_MAX;
-  if (!this->EnsureBuilt() || this->Processor->Tree.empty() || !(radius >= 0))
+  if (!this->EnsureBuilt() || this->Processor->Core.tree.empty() || !(radius >= 0))
   {
     return 0;
   }
@@ -239,19 +239,19 @@ void vtkMatrixTreeLocator::FindClosestPoint(const double x[3], double closestPoi
 void vtkMatrixTreeLocator::FindCellsWithinBounds(double* bbox, vtkIdList* cells)
 {
   cells->Reset();
-  if (this->EnsureBuilt() && !this->Processor->Tree.empty())
+  if (this->EnsureBuilt() && !this->Processor->Core.tree.empty())
   {
     this->Processor->CellsWithinBounds(bbox, cells);
   }
 }
 
 void vtkMatrixTreeLocator::FindCellsAlongLine(
-  const double p1[3], const double p2[3], double vtkNotUsed(tolerance), vtkIdList* cells)
+  const double p1[3], const double p2[3], double tolerance, vtkIdList* cells)
 {
   cells->Reset();
   if (this->EnsureBuilt())
   {
-    this->Processor->CellsAlongLine(p1, p2, cells);
+    this->Processor->CellsAlongLine(p1, p2, tolerance, cells);
   }
 }
 
@@ -419,23 +419,23 @@ void vtkMatrixTreeLocator::FindClosestPoints(
 //------------------------------------------------------------------------------
 double vtkMatrixTreeLocator::GetLeafScaleUsed()
 {
-  return this->Processor->Valid ? this->Processor->LeafScaleUsed : 0.0;
+  return this->Processor->Valid ? this->Processor->Core.leafScaleUsed : 0.0;
 }
 double vtkMatrixTreeLocator::GetMaxCandidatesUsed()
 {
-  return this->Processor->Valid ? this->Processor->MaxCandidatesUsed : 0.0;
+  return this->Processor->Valid ? this->Processor->Core.maxCandidatesUsed : 0.0;
 }
 int vtkMatrixTreeLocator::GetTreeHeight()
 {
-  return this->Processor->Valid ? this->Processor->Tree.height() : 0;
+  return this->Processor->Valid ? this->Processor->Core.tree.height() : 0;
 }
 vtkIdType vtkMatrixTreeLocator::GetNumberOfLeaves()
 {
-  return this->Processor->Valid ? static_cast<vtkIdType>(this->Processor->Stats.leaves) : 0;
+  return this->Processor->Valid ? static_cast<vtkIdType>(this->Processor->Core.stats.leaves) : 0;
 }
 vtkIdType vtkMatrixTreeLocator::GetNumberOfReferences()
 {
-  return this->Processor->Valid ? static_cast<vtkIdType>(this->Processor->Stats.references) : 0;
+  return this->Processor->Valid ? static_cast<vtkIdType>(this->Processor->Core.stats.references) : 0;
 }
 vtkIdType vtkMatrixTreeLocator::GetMemorySize()
 {
@@ -447,7 +447,7 @@ const char* vtkMatrixTreeLocator::GetBuildPhases()
 }
 double vtkMatrixTreeLocator::GetLastBuildTime()
 {
-  return this->Processor->Stats.totalMs;
+  return this->Processor->Core.stats.totalMs;
 }
 vtkTypeInt64 vtkMatrixTreeLocator::GetCachedMemorySize()
 {

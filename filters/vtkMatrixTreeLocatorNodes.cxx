@@ -20,7 +20,7 @@
 
 void vtkMatrixTreeLocatorProcessor::Representation(int level, vtkPolyData* pd) const
 {
-  const mtree::MatrixTree& tree = this->Tree;
+  const mtree::MatrixTree& tree = this->Core.tree;
   vtkNew<vtkPoints> pts;
   vtkNew<vtkCellArray> quads;
   vtkNew<vtkIntArray> levels;
@@ -58,7 +58,7 @@ void vtkMatrixTreeLocatorProcessor::Representation(int level, vtkPolyData* pd) c
 
 vtkIdType vtkMatrixTreeLocatorProcessor::Nodes(int minLevel, int maxLevel, vtkUnstructuredGrid* output) const
 {
-  const mtree::MatrixTree& tree = this->Tree;
+  const mtree::MatrixTree& tree = this->Core.tree;
   vtkNew<vtkPoints> pts;
   pts->SetDataTypeToDouble();
   vtkNew<vtkCellArray> cells;

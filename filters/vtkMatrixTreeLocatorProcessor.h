@@ -1,12 +1,14 @@
 // Private to the MatrixTree::Filters module (not wrapped, not installed): what
-// vtkMatrixTreeLocator's public methods delegate to. It holds one build (the cells, the tree,
-// the quantized leaf boxes, the shape memo) and answers the queries on it; the locator only
+// vtkMatrixTreeLocator's public methods delegate to. It reads the data set's cells
+// (vtkMatrixTreeCellSetSource), builds and queries them with the engine's one locator algorithm
+// (mtree::vtk91::LocatorCore, the same as the VTK-free mtree::CellLocator's), with VTK's own
+// cells as the oracle for what the engine's fast decisions leave open
+// (vtkMatrixTreeCellBridge::Oracle), and converts the answers to VTK's types; the locator only
 // decides when to build and checks its arguments.
 //
-// Invariants: the tree's primitive indices, LeafBoxes (6 bytes per index, leaf_boxes.h) and
-// ShapeMemo (one byte per cell, or none) all describe Cells, the cells of the data set the
-// build read (BuiltOn); Valid is false until a build completes. Queries only read the build
-// (ShapeMemo bytes are relaxed atomics), so they may run concurrently.
+// Invariants: Core describes the cells of the data set the build read (BuiltOn), whose arrays
+// Source holds; Valid is false until a build completes. Queries only read the build, so they
+// may run concurrently.
 #ifndef vtkMatrixTreeLocatorProcessor_h
 #define vtkMatrixTreeLocatorProcessor_h
 
@@ -15,11 +17,8 @@
 #include "vtkMatrixTreeLocatorTuning.h"
 #include "vtkMatrixTreeQueryStatistics.h"
 
-#include "mtree/cells/cells.h"
-#include "mtree/core/builder.h"
-#include "mtree/core/matrix_tree.h"
-#include "mtree/core/memory.h"
 #include "mtree/device/opencl.h"
+#include "mtree/vtk91/locator_core.h"
 
 #include "vtkType.h"
 
@@ -68,12 +67,7 @@ public:
   /** FindCell: the leaf holding x, scanned from its first candidate (inline: most points of a
    * surface's box are in no leaf, answered here). */
   vtkIdType FindCell(
-    vtkDataSet* ds, const double x[3], vtkGenericCell* cell, double pcoords[3], double* weights) const
-  {
-    vtkMatrixTreeQueryStatistics::CountQuery(vtkMatrixTreeQueryStatistics::kFcQueries);
-    const mtree::NodeRef n = this->Tree.leafHolding(mtree::Vec3(x));
-    return n.exists ? this->ScanLeaf(ds, x, n, n.range.begin, cell, pcoords, weights) : -1;
-  }
+    vtkDataSet* ds, const double x[3], vtkGenericCell* cell, double pcoords[3], double* weights) const;
   /**
    * The point-location loop over the candidates [k, end) of leaf n, the leaf leafHolding gives
    * for x: FindCell runs it from the leaf's first candidate, the OpenCL backend from the
@@ -82,18 +76,18 @@ public:
    */
   vtkIdType ScanLeaf(vtkDataSet* ds, const double x[3], const mtree::NodeRef& n, uint32_t k, vtkGenericCell* cell,
     double pcoords[3], double* weights) const;
-  /** IntersectWithLine's first hit (vtkMatrixTreeFirstHitQuery). */
+  /** IntersectWithLine's first hit (LocatorCore::firstHit, VTK's cells the oracle). */
   int FirstHit(vtkDataSet* ds, const double p1[3], const double p2[3], double tol, double& t, double x[3],
     double pcoords[3], int& subId, vtkIdType& cellId, vtkGenericCell* cell) const;
   /** Every hit of the segment, sorted by t then cell id; the number of hits. */
   int AllHits(vtkDataSet* ds, const double p1[3], const double p2[3], vtkPoints* points, vtkIdList* cellIds) const;
-  /** FindClosestPointWithinRadius (a non-empty tree, radius >= 0). */
+  /** FindClosestPointWithinRadius (a non-empty tree, radius >= 0); 0 for a non-finite x. */
   vtkIdType ClosestPoint(vtkDataSet* ds, const double x[3], double radius, double closestPoint[3],
     vtkGenericCell* cell, vtkIdType& cellId, int& subId, double& dist2, int& inside) const;
   /** The cells whose bounds meet bbox (xmin xmax ymin ymax zmin zmax), ascending. */
   void CellsWithinBounds(const double bbox[6], vtkIdList* cells) const;
-  /** The cells referenced by the leaves the segment crosses, ascending. */
-  void CellsAlongLine(const double p1[3], const double p2[3], vtkIdList* cells) const;
+  /** The cells whose bounds, grown by tol, the segment crosses, ascending. */
+  void CellsAlongLine(const double p1[3], const double p2[3], double tol, vtkIdList* cells) const;
   /** GenerateRepresentation's quads of level `level` into pd. */
   void Representation(int level, vtkPolyData* pd) const;
   /** GenerateNodes's voxels of levels minLevel..maxLevel into output; their number. */
@@ -110,7 +104,7 @@ public:
   bool LocateOnDevice(const std::string& selector, vtkPoints* points, std::vector<uint32_t>& answers);
 
   /**
-   * FindCells' loop over the points (vtkMatrixTreeBatchRunner, `threads`): per point i, ids[i]
+   * FindCells' loop over the points (mtree::vtk91::runBatch, `threads`): per point i, ids[i]
    * as FindCell gives it (-1: none), pcoords (3 per point, optional) and weights (nw per point,
    * optional) as FindCell writes them for the found cell and 0 elsewhere. With `answers` (the
    * device's, 2 per point) each point is finished from where the device stopped: a "found" is
@@ -143,26 +137,11 @@ public:
   vtkMatrixTreeLocatorTuning Tuning; // the query fields are read per query
 
   // The build.
-  vtkMatrixTreeCellSetSource Source; // holds the arrays Cells reads in place
-  mtree::CellSet Cells;
-  mtree::MatrixTree Tree;
-  mtree::BuildStats Stats;
-  double MaxCellExtent[3] = { 0, 0, 0 }; // largest cell bounding-box extent per axis
-  double LeafScaleUsed = 0;
-  double MaxCandidatesUsed = 0;
-  // Per reference (the order of the tree's primitive indices), the cell's quantized box in the
-  // leaf (mtree/cells/leaf_boxes.h).
-  mtree::LargeVector<uint8_t> LeafBoxes;
-  // One mtree::ConvexShapeMemo byte per cell where the cells include hexahedra, wedges or
-  // pyramids (else null): the ray queries' planarity and convexity checks of a cell, done once
-  // per build; written by concurrent queries (relaxed atomics).
-  struct FreeDeleter
-  {
-    void operator()(uint8_t* p) const { std::free(p); }
-  };
-  std::unique_ptr<uint8_t[], FreeDeleter> ShapeMemo;
+  vtkMatrixTreeCellSetSource Source; // holds the arrays Core.cells reads in place
+  mtree::vtk91::LocatorCore Core;
   vtkDataSet* BuiltOn = nullptr; // the data set of the last build (compared, never dereferenced)
   std::string Phases;            // "name ms; ..." of the last build
+  double TotalMs = 0;            // the last build's time
   bool Valid = false;
 
   // The OpenCL backend: the device locator for the selector, and whether it holds the current

@@ -8,37 +8,20 @@
 #include <atomic>
 #include <cstdint>
 
+#include "mtree/vtk91/locator_events.h"
+
 namespace vtkMatrixTreeQueryStatistics
 {
-enum QueryStat
-{
-  kFcQueries,
-  kFcLeafScans,
-  kFcReferences,
-  kFcBoxPasses,
-  kFcEvaluations,
-  kFcFound,
-  kRayQueries,
-  kRaySteps,
-  kRayNodeVisits,
-  kRayLeaves,
-  kRayReferences,
-  kRayCandidates,
-  kRayCellTests,
-  kRayMailboxRepeats,
-  kRayProvedMisses,
-  kRayCertainHits,
-  kRayVtkCalls,
-  kRayHits,
-  kNumQueryStats
-};
+// The counters are the engine locator's events (mtree::vtk91::LocatorEvent), in its order.
+using QueryStat = mtree::vtk91::LocatorEvent;
+constexpr int kNumQueryStats = static_cast<int>(QueryStat::kCount);
 
 #if defined(MATRIXTREE_QUERY_STATS) && MATRIXTREE_QUERY_STATS
 constexpr bool kQueryStats = true;
 extern std::atomic<uint64_t> gQueryStats[kNumQueryStats];
 inline void CountQuery(QueryStat s, uint64_t n = 1)
 {
-  gQueryStats[s].fetch_add(n, std::memory_order_relaxed);
+  gQueryStats[static_cast<int>(s)].fetch_add(n, std::memory_order_relaxed);
 }
 #else
 constexpr bool kQueryStats = false;

@@ -2,6 +2,7 @@
 
 #include "vtkMatrixTree.h"
 #include "vtkMatrixTreeBackend.h"
+#include "vtkMatrixTreeChecks.h"
 #include "vtkMatrixTreeInternals.h"
 
 #include "vtkFloatArray.h"
@@ -16,8 +17,6 @@
 #include "vtkUnsignedCharArray.h"
 #include "vtkUnsignedIntArray.h"
 
-#include "mtree/device/opencl.h"
-#include "mtree/device/opencl_render.h"
 #include "mtree/rays/render.h"
 #include "mtree/rays/sah_kdtree.h"
 
@@ -73,8 +72,9 @@ int vtkMatrixTreeRayCaster::FillInputPortInformation(int, vtkInformation* info)
 int vtkMatrixTreeRayCaster::RequestInformation(
   vtkInformation*, vtkInformationVector**, vtkInformationVector* outputVector)
 {
-  const int w = std::min(std::max(this->ImageSize[0], 1), 16384);
-  const int h = std::min(std::max(this->ImageSize[1], 1), 16384);
+  // The extent of a size RequestData will refuse is clamped here: information cannot fail.
+  const int w = std::min(std::max(this->ImageSize[0], 1), vtkMatrixTreeChecks::kMaxImageSide);
+  const int h = std::min(std::max(this->ImageSize[1], 1), vtkMatrixTreeChecks::kMaxImageSide);
   int extent[6] = { 0, w - 1, 0, h - 1, 0, 0 };
   vtkInformation* outInfo = outputVector->GetInformationObject(0);
   outInfo->Set(vtkStreamingDemandDrivenPipeline::WHOLE_EXTENT(), extent, 6);
@@ -93,8 +93,18 @@ int vtkMatrixTreeRayCaster::RequestData(
     vtkErrorMacro("RequestData: missing input polydata or output image.");
     return 0;
   }
-  const int w = std::min(std::max(this->ImageSize[0], 1), 16384);
-  const int h = std::min(std::max(this->ImageSize[1], 1), 16384);
+  std::string invalid = vtkMatrixTreeChecks::ImageSize(this->ImageSize);
+  if (invalid.empty() && !this->AutoCamera)
+  {
+    invalid = vtkMatrixTreeChecks::Camera(this->Position, this->FocalPoint);
+  }
+  if (!invalid.empty())
+  {
+    vtkErrorMacro("RequestData: " << invalid << ".");
+    return 0;
+  }
+  const int w = this->ImageSize[0];
+  const int h = this->ImageSize[1];
   output->SetExtent(0, w - 1, 0, h - 1, 0, 0);
   output->SetOrigin(0, 0, 0);
   output->SetSpacing(1, 1, 1);
@@ -154,7 +164,8 @@ int vtkMatrixTreeRayCaster::RequestData(
     const vtkIdType buildsBefore = this->Tree->GetNumberOfBuilds();
     if (!this->Tree->BuildIfNeeded())
     {
-      vtkErrorMacro("RequestData: the matrix tree could not be built (see the error above).");
+      vtkErrorMacro("RequestData: the " << this->Tree->GetTreeTypeAsString()
+                                          << " tree could not be built (see the error above).");
       return 0;
     }
     this->LastRebuilt = this->Tree->GetNumberOfBuilds() != buildsBefore;
@@ -212,22 +223,17 @@ int vtkMatrixTreeRayCaster::RequestData(
       this->Sah->Payload.empty() ? nullptr : &this->Sah->Payload };
     r = mtree::render(tracer, mesh, scene, cam, ro);
   }
-  else if (mtree::ocl::Tracer* clTracer = this->Tree->GetOpenCLTracer())
+  else
   {
     try
     {
-      r = mtree::renderOpenCL(*clTracer, in.Mesh, scene, cam, ro);
+      r = this->Tree->Render(cam, ro, test == mtree::TriangleTest::Watertight);
     }
     catch (const std::exception& e)
     {
-      vtkErrorMacro("RequestData (opencl backend): " << e.what());
+      vtkErrorMacro("RequestData (" << this->Tree->GetBackendAsString() << " backend): " << e.what());
       return 0;
     }
-  }
-  else
-  {
-    const mtree::MatrixTreeTracer tracer{ in.Tree, in.Mesh, test, in.Payload.empty() ? nullptr : &in.Payload };
-    r = mtree::render(tracer, in.Mesh, scene, cam, ro);
   }
   this->UpdateProgress(0.9);
 
@@ -294,7 +300,8 @@ void vtkMatrixTreeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   this->Superclass::PrintSelf(os, indent);
   vtkMatrixTreeBackend::Print(
     os, indent, this->Tree->GetBackend(), this->Tree->GetOpenCLDevice(), this->Tree->GetOpenCLDeviceName());
-  os << indent << "Accelerator: " << (this->Accelerator == SAH_KDTREE ? "SAH kd-tree" : "matrix tree") << "\n";
+  os << indent << "Accelerator: "
+     << (this->Accelerator == SAH_KDTREE ? "SAH kd-tree" : this->Tree->GetTreeTypeAsString()) << "\n";
   os << indent << "SAHTraversal: " << this->SAHTraversal << "\n";
   os << indent << "ShortStackSize: " << this->ShortStackSize << "\n";
   os << indent << "TriangleTest: " << (this->TriangleTest == WATERTIGHT ? "watertight" : "Moller-Trumbore") << "\n";

@@ -1,6 +1,6 @@
 /**
  * @class   vtkMatrixTreeRayCaster
- * @brief   ray casts a triangle mesh through a matrix tree into an image
+ * @brief   ray casts a triangle mesh through a matrix tree (or the paper's other trees) into an image
  *
  * vtkMatrixTreeRayCaster takes a vtkPolyData, builds (or reuses) a vtkMatrixTree over its
  * triangles, and casts one primary ray per pixel from a pinhole camera, plus one shadow ray per
@@ -19,11 +19,14 @@
  * The tree settings are those of GetTree() (octree, automatic height by default). The tree is
  * rebuilt only when the input or the tree settings change.
  *
- * The accelerator is selectable, so that the paper's baseline renders through the same code:
- * SetAcceleratorToSAHKdTree() traces through a surface-area-heuristic kd-tree (Wald & Havran's
- * O(N log N) build, 8-byte nodes) with the traversal SAHTraversal (KD-Restart, a full stack,
- * or a short stack of ShortStackSize entries). TriangleTest picks Moller-Trumbore (default) or
- * the watertight test of Woop, Benthin & Wald for either accelerator.
+ * The accelerator is selectable, so that every tree of the paper renders through the same code:
+ * MATRIX_TREE (default) traces through GetTree() with its TreeType: the matrix octree or
+ * kd-tree, the implicit general kd-tree or BSP tree, or the hybrid matrix/SAH tree
+ * (vtkMatrixTree, docs/trees.md); SetAcceleratorToSAHKdTree() traces
+ * through the baseline, a surface-area-heuristic kd-tree (Wald & Havran's O(N log N) build,
+ * 8-byte pointer nodes) with the traversal SAHTraversal (KD-Restart, a full stack, or a short
+ * stack of ShortStackSize entries). TriangleTest picks Moller-Trumbore (default) or the
+ * watertight test of Woop, Benthin & Wald for either accelerator.
  *
  * @sa
  * vtkMatrixTree
@@ -47,13 +50,17 @@ public:
   vtkGetObjectMacro(Tree, vtkMatrixTree);
 
   ///@{
-  /** Image width and height in pixels (default 800 x 800, each clamped to 1..16384). */
+  /** Image width and height in pixels (default 800 x 800, each 1..16384: RequestData refuses others). */
   vtkSetVector2Macro(ImageSize, int);
   vtkGetVector2Macro(ImageSize, int);
   ///@}
 
   ///@{
-  /** Pinhole camera; used when AutoCamera is off. */
+  /**
+   * Pinhole camera; used when AutoCamera is off. Position and FocalPoint must be finite and
+   * apart (RequestData refuses others); a ViewUp along the view direction is replaced by the y
+   * (or x) axis.
+   */
   vtkSetVector3Macro(Position, double);
   vtkGetVector3Macro(Position, double);
   vtkSetVector3Macro(FocalPoint, double);
@@ -109,8 +116,8 @@ public:
 
   ///@{
   /**
-   * Accelerator: MATRIX_TREE (default; GetTree()'s settings and backend) or SAH_KDTREE (CPU only;
-   * rebuilt when the input changes; GetLastBuildTime() is then the SAH build).
+   * Accelerator: MATRIX_TREE (default; GetTree() with its TreeType, settings and backend) or
+   * SAH_KDTREE (CPU only; rebuilt when the input changes; GetLastBuildTime() is then the SAH build).
    */
   enum Accelerators
   {

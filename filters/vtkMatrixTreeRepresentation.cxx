@@ -3,8 +3,11 @@
 #include "vtkDataSet.h"
 #include "vtkInformation.h"
 #include "vtkInformationVector.h"
+#include "vtkMatrixTree.h"
+#include "vtkMatrixTreeInternals.h"
 #include "vtkMatrixTreeLocator.h"
 #include "vtkObjectFactory.h"
+#include "vtkPolyData.h"
 #include "vtkUnstructuredGrid.h"
 
 #include <algorithm>
@@ -14,6 +17,7 @@ vtkCxxSetObjectMacro(vtkMatrixTreeRepresentation, Locator, vtkMatrixTreeLocator)
 
 vtkMatrixTreeRepresentation::vtkMatrixTreeRepresentation()
   : InternalLocator(vtkMatrixTreeLocator::New())
+  , InternalTree(vtkMatrixTree::New())
 {
 }
 
@@ -21,6 +25,7 @@ vtkMatrixTreeRepresentation::~vtkMatrixTreeRepresentation()
 {
   this->SetLocator(nullptr);
   this->InternalLocator->Delete();
+  this->InternalTree->Delete();
 }
 
 vtkMTimeType vtkMatrixTreeRepresentation::GetMTime()
@@ -60,6 +65,33 @@ int vtkMatrixTreeRepresentation::RequestData(
     vtkErrorMacro("BlockSize must be a power of two in [1, 32], got " << b << ".");
     return 0;
   }
+  if (!this->Locator && this->TreeType >= vtkMatrixTree::IMPLICIT_KDTREE)
+  {
+    vtkPolyData* surface = vtkPolyData::SafeDownCast(input);
+    vtkMatrixTree* tree = this->InternalTree;
+    tree->SetTreeType(this->TreeType);
+    if (!surface)
+    {
+      vtkErrorMacro("TreeType " << tree->GetTreeTypeAsString() << " indexes triangles: the input must be a "
+                                << "vtkPolyData (e.g. vtkGeometryFilter's output), got a " << input->GetClassName()
+                                << ".");
+      return 0;
+    }
+    tree->SetHeight(this->Height);
+    tree->SetBlockSize(this->BlockSize);
+    tree->SetExactOverlap(this->ExactOverlap);
+    if (tree->GetDataSet() != surface)
+    {
+      tree->SetDataSet(surface);
+    }
+    if (!tree->BuildIfNeeded())
+    {
+      vtkErrorMacro("The " << tree->GetTreeTypeAsString() << " tree could not be built on this input.");
+      return 0;
+    }
+    vtkMatrixTreeSplitTrees::Nodes(*tree->GetInternals(), this->MinLevel, this->MaxLevel, output);
+    return 1;
+  }
   vtkMatrixTreeLocator* loc = this->Locator ? this->Locator : this->InternalLocator;
   if (!this->Locator)
   {
@@ -87,7 +119,8 @@ void vtkMatrixTreeRepresentation::PrintSelf(ostream& os, vtkIndent indent)
   this->Superclass::PrintSelf(os, indent);
   os << indent << "MinLevel: " << this->MinLevel << "\n";
   os << indent << "MaxLevel: " << this->MaxLevel << (this->MaxLevel < 0 ? " (leaves)" : "") << "\n";
-  os << indent << "TreeType: " << (this->TreeType == 1 ? "KDTREE" : "OCTREE") << "\n";
+  static const char* const types[] = { "OCTREE", "KDTREE", "IMPLICIT_KDTREE", "BSP_TREE", "HYBRID" };
+  os << indent << "TreeType: " << types[this->TreeType] << "\n";
   os << indent << "Height: " << this->Height << (this->Height == 0 ? " (automatic)" : "") << "\n";
   os << indent << "BlockSize: " << this->BlockSize << "\n";
   os << indent << "ExactOverlap: " << (this->ExactOverlap ? "On" : "Off") << "\n";

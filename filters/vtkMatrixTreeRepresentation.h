@@ -1,6 +1,7 @@
 /**
  * @class   vtkMatrixTreeRepresentation
- * @brief   the matrix tree of a data set's cells as an unstructured grid of node boxes
+ * @brief   the matrix tree of a data set's cells as an unstructured grid of node boxes, or the
+ *          split planes of an implicit kd-tree, BSP tree or hybrid tree
  *
  * vtkMatrixTreeRepresentation builds (or borrows) a vtkMatrixTreeLocator over the cells of its
  * input (any vtkDataSet) and outputs one VTK_VOXEL per existing node of the chosen levels, so
@@ -13,10 +14,19 @@
  *   node under the build's overlap test; for a leaf, the candidates a point query tests.
  * Field data "tree_height" holds the height.
  *
+ * TreeType IMPLICIT_KDTREE, BSP_TREE or HYBRID (vtkMatrixTree's, over the triangles of a
+ * vtkPolyData input; another input is an error) outputs instead each inner node's split plane of
+ * the chosen levels as a VTK_POLYGON clipped to the node's cell (the root box cut by the planes
+ * above it), and for the hybrid each existing node of its matrix part as a VTK_VOXEL, its
+ * kd-trees' planes starting at the matrix leaves' level (MaxLevel -1: every level). Cell data
+ * "level" and "direction" (the plane's direction: 0-2 the axes, 3-12 the BSP tree's diagonal
+ * directions, -1 for a voxel); field data "tree_height" (vtkMatrixTree::GetTreeHeight()).
+ *
  * Settings: MinLevel (default 0) and MaxLevel (default -1 = the leaf level) choose the levels;
- * TreeType, Height, BlockSize and ExactOverlap configure the internal locator. With SetLocator
- * the given locator is used instead (its settings apply, its tree is reused when it is already
- * built on this input, and the filter's tree settings are ignored).
+ * TreeType, Height, BlockSize and ExactOverlap configure the internal locator (or, for the
+ * three tree types above, the internal vtkMatrixTree). With SetLocator the given locator is used
+ * instead (its settings apply, its tree is reused when it is already built on this input, and the
+ * filter's tree settings are ignored).
  *
  * @sa
  * vtkMatrixTreeLocator vtkMatrixTree
@@ -27,6 +37,7 @@
 #include "MatrixTreeFiltersModule.h" // For export macro
 #include "vtkUnstructuredGridAlgorithm.h"
 
+class vtkMatrixTree;
 class vtkMatrixTreeLocator;
 
 class MATRIXTREEFILTERS_EXPORT vtkMatrixTreeRepresentation : public vtkUnstructuredGridAlgorithm
@@ -49,8 +60,11 @@ public:
   ///@}
 
   ///@{
-  /** Tree of the internal locator: 0 = octree (default), 1 = regular kd-tree. */
-  vtkSetClampMacro(TreeType, int, 0, 1);
+  /**
+   * Tree: vtkMatrixTree::TreeTypes: OCTREE (0, default) and KDTREE (1) of the internal locator,
+   * IMPLICIT_KDTREE (2), BSP_TREE (3) and HYBRID (4) of the internal vtkMatrixTree.
+   */
+  vtkSetClampMacro(TreeType, int, 0, 4);
   vtkGetMacro(TreeType, int);
   ///@}
 
@@ -98,6 +112,7 @@ protected:
   bool ExactOverlap = false;
   vtkMatrixTreeLocator* Locator = nullptr;
   vtkMatrixTreeLocator* InternalLocator = nullptr;
+  vtkMatrixTree* InternalTree = nullptr;
 
 private:
   vtkMatrixTreeRepresentation(const vtkMatrixTreeRepresentation&) = delete;

@@ -1,6 +1,7 @@
 #include "vtkMatrixTreeVolumeRayCaster.h"
 
 #include "vtkMatrixTreeBackend.h"
+#include "vtkMatrixTreeChecks.h"
 #include "vtkMatrixTreeVolumeTuning.h"
 
 #include "vtkCamera.h"
@@ -259,6 +260,17 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       vtkErrorMacro("The input spacing must be finite and non-zero along every axis.");
       return 0;
     }
+  }
+  std::string invalid = vtkMatrixTreeChecks::VolumeSettings(scalars->GetNumberOfTuples(), dims, geo.spacing,
+    this->SampleDistance, this->EarlyTerminationThreshold, this->ScalarOpacityUnitDistance);
+  if (invalid.empty())
+  {
+    invalid = vtkMatrixTreeChecks::ImageSize(this->ImageSize);
+  }
+  if (!invalid.empty())
+  {
+    vtkErrorMacro(<< invalid << ".");
+    return 0;
   }
 
   vtkMatrixTreeVolumeRayCasterInternals& in = *this->Internals;

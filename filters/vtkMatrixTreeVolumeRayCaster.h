@@ -120,14 +120,15 @@ public:
   /**
    * Speed/accuracy controls.
    * SampleDistance: world units between samples along a ray (default 1). Halving it doubles the
-   * samples; the error of the Riemann sum shrinks linearly.
+   * samples; the error of the Riemann sum shrinks linearly. It must be > 0 and give at most 2^20
+   * samples across the volume's diagonal: RequestData reports an error otherwise.
    * ImageSampleDistance: >1 casts ImageSize/ImageSampleDistance rays per axis and interpolates
    * bilinearly (default 1, 1..32).
    * EarlyTerminationThreshold: a ray stops when its opacity reaches it (default 0.99; 1 = never).
    * DoublePrecision: interpolate and composite in double instead of float (default off; the
    * difference is ~1e-6 per channel, the cost ~10%).
    */
-  vtkSetClampMacro(SampleDistance, double, 1e-9, 1e30);
+  vtkSetMacro(SampleDistance, double);
   vtkGetMacro(SampleDistance, double);
   vtkSetClampMacro(ImageSampleDistance, double, 1.0, 32.0);
   vtkGetMacro(ImageSampleDistance, double);

@@ -3,8 +3,8 @@
 # (pytest in .venv), the Python tests that need no VTK C++ classes in an
 # isolated pip environment (build/venv-pip: the newest pip `vtk` and `pyvista`,
 # the package installed with `pip install .`), the ParaView plugin tests
-# (pvbatch) and the MPI tests (mpirun). Exits non-zero if setup or any stage
-# fails.
+# (pvbatch), the MPI tests (mpirun) and the sanitizer/fuzz stages
+# (scripts/sanitize.sh). Exits non-zero if setup or any stage fails.
 set -uo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -78,6 +78,31 @@ T4=$SECONDS
 mpi_rc=${PIPESTATUS[0]}
 T_MPI=$((SECONDS - T4))
 
+# Sanitizers and fuzzing (scripts/sanitize.sh, docs/reliability.md): the stages named in
+# $MATRIXTREE_SANITIZE_STAGES, default "fuzz" (the engine's fuzz harnesses built with clang under
+# ASan+UBSan, each fuzzed $MATRIXTREE_FUZZ_SECONDS from seed 1 after replaying its regressions,
+# then the Python reader fuzzer as long); "asan tsan fuzz" runs all three, "none" skips.
+SAN_STAGES="${MATRIXTREE_SANITIZE_STAGES:-fuzz}"
+echo "[test] sanitize: $SAN_STAGES"
+T6=$SECONDS
+sanitize_stages() {
+  local stage rc=0
+  for stage in $SAN_STAGES; do
+    if [[ "$stage" == "fuzz" ]]; then
+      bash scripts/sanitize.sh fuzz "${MATRIXTREE_FUZZ_SECONDS:-10}" || rc=1
+    else
+      bash scripts/sanitize.sh "$stage" || rc=1
+    fi
+  done
+  return "$rc"
+}
+sanitize_rc=0
+if [[ "$SAN_STAGES" != "none" ]]; then
+  sanitize_stages 2>&1 | tee build/sanitize.log
+  sanitize_rc=${PIPESTATUS[0]}
+fi
+T_SANITIZE=$((SECONDS - T6))
+
 verdict() { if [[ "$1" -eq 0 ]]; then echo "PASS"; else echo "FAIL (exit $1)"; fi; }
 echo
 echo "================ summary ================"
@@ -87,5 +112,7 @@ echo "pytest: $(verdict "$pytest_rc") (${T_PYTEST} s) - $(grep -E '(passed|faile
 echo "pip   : $(verdict "$pip_rc") (${T_PIP} s) - $(grep -oE 'vtk [0-9.]+, pyvista [0-9.]+' build/pytest-pip.log | tail -n 1); $(grep -E '(passed|failed|error|no tests ran)' build/pytest-pip.log | tail -n 1)"
 echo "paraview: $(verdict "$paraview_rc") (${T_PARAVIEW} s) - $(grep -E '(passed|failed|error|no tests ran)' build/paraview.log | tail -n 1)"
 echo "mpi   : $(verdict "$mpi_rc") (${T_MPI} s) - $(grep -E '(passed|failed|error|no tests ran)' build/mpi.log | tail -n 1)"
+echo "sanitize: $(verdict "$sanitize_rc") (${T_SANITIZE} s) - stages: $SAN_STAGES"
 
-[[ "$ctest_rc" -eq 0 && "$pytest_rc" -eq 0 && "$pip_rc" -eq 0 && "$paraview_rc" -eq 0 && "$mpi_rc" -eq 0 ]]
+[[ "$ctest_rc" -eq 0 && "$pytest_rc" -eq 0 && "$pip_rc" -eq 0 && "$paraview_rc" -eq 0 && "$mpi_rc" -eq 0 &&
+  "$sanitize_rc" -eq 0 ]]

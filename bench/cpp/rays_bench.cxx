@@ -45,6 +45,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_scene.h"
 #include "mtree/core/builder.h"
 #include "mtree/rays/batch_trace.h"
 #include "mtree/rays/intersect.h"
@@ -60,64 +61,19 @@
 namespace {
 
 using namespace mtree;
+using mtbench::cpuMs;
+using mtbench::readScene;
+using mtbench::Scene;
 using Clock = std::chrono::steady_clock;
 
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-struct Scene {
-  uint32_t nv = 0, nt = 0, nf = 0;
-  Camera cam;
-  std::vector<uint32_t> tris;
-  std::vector<std::vector<double>> frames;
-};
-
-Scene readScene(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error("cannot open scene file " + path);
-  char magic[8];
-  f.read(magic, 8);
-  if (!f || std::memcmp(magic, "MTSCENE1", 8) != 0) throw std::runtime_error(path + ": not an MTSCENE1 file");
-  Scene s;
-  uint32_t hdr[5];
-  f.read(reinterpret_cast<char*>(hdr), sizeof hdr);
-  double cam[10];
-  f.read(reinterpret_cast<char*>(cam), sizeof cam);
-  if (!f) throw std::runtime_error(path + ": truncated header");
-  s.nv = hdr[0];
-  s.nt = hdr[1];
-  s.nf = hdr[2];
-  s.cam.width = static_cast<int>(hdr[3]);
-  s.cam.height = static_cast<int>(hdr[4]);
-  s.cam.eye = Vec3(cam[0], cam[1], cam[2]);
-  s.cam.target = Vec3(cam[3], cam[4], cam[5]);
-  s.cam.up = Vec3(cam[6], cam[7], cam[8]);
-  s.cam.fovyDegrees = cam[9];
-  if (s.nf == 0 || s.cam.width <= 0 || s.cam.height <= 0) throw std::runtime_error(path + ": no frames or empty image");
-  s.tris.resize(size_t(s.nt) * 3);
-  f.read(reinterpret_cast<char*>(s.tris.data()), std::streamsize(s.tris.size() * sizeof(uint32_t)));
-  s.frames.resize(s.nf);
-  for (auto& fr : s.frames) {
-    fr.resize(size_t(s.nv) * 3);
-    f.read(reinterpret_cast<char*>(fr.data()), std::streamsize(fr.size() * sizeof(double)));
-  }
-  if (!f) throw std::runtime_error(path + ": truncated triangles or frames");
-  return s;
-}
-
 Box pointBox(const std::vector<double>& p) {
   Box b;
   for (size_t i = 0; i + 2 < p.size(); i += 3) b.extend(Vec3(p[i], p[i + 1], p[i + 2]));
   return b;
-}
-
-// CPU time of the whole process (all threads): with one thread, a timing that other processes
-// sharing the machine disturb much less than the wall clock.
-double cpuMs() {
-  timespec ts;
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return 1e3 * double(ts.tv_sec) + 1e-6 * double(ts.tv_nsec);
 }
 
 double median(std::vector<double> v) {

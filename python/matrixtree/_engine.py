@@ -27,9 +27,19 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 from matrixtree import _meshstate
 from matrixtree._cellarrays import cell_arrays, points_of, surface_arrays
 from matrixtree._backend import engine
-from matrixtree._util import bounds6, check_backend, points3, segments, tree_type
+from matrixtree._util import RAY_TREES, bounds6, check_backend, points3, segments, tree_type
 
 _TREE_NAMES = {0: "octree", 1: "kdtree"}
+
+
+def _engine_tree(tree: str) -> str:
+    """``tree`` if the engine extension builds it ("octree", "kdtree"); ValueError otherwise,
+    naming the VTK module for the split-plane and hybrid trees (docs/trees.md)."""
+    tree_type(tree, RAY_TREES)  # ValueError naming every tree
+    if tree not in _TREE_NAMES.values():
+        raise ValueError(f"tree={tree!r} needs the VTK module (matrixtree_vtk); the engine extension "
+                         f"builds {sorted(_TREE_NAMES.values())}")
+    return tree
 
 
 def _no_opencl(what: str) -> RuntimeError:
@@ -175,16 +185,17 @@ class MatrixTree:
     """
 
     def __init__(self, mesh, tree: str = "octree", height: int = 0, block_size: int = 8,
-                 exact: bool = True, leaf_scale: float = 2.0, threads: int = 0,
+                 exact: bool = True, leaf_scale: float | None = None, threads: int = 0,
                  backend: str = "cpu", device: str | None = None):
         from matrixtree.core import _as_polydata, _check_tree_settings
 
         self.mesh = _as_polydata(mesh)
         if check_backend(backend) == "opencl":
             raise _no_opencl("MatrixTree")
-        _check_tree_settings(height, block_size, leaf_scale)
-        self._settings = dict(tree=_TREE_NAMES[tree_type(tree)], height=int(height), block_size=int(block_size),
-                              exact=bool(exact), leaf_scale=float(leaf_scale), threads=int(threads))
+        _, height, leaf_scale, threads = _check_tree_settings(tree, height, block_size, leaf_scale, threads)
+        self._settings = dict(tree=_engine_tree(tree), height=height, block_size=int(block_size),
+                              exact=bool(exact), leaf_scale=2.0 if leaf_scale is None else leaf_scale,
+                              threads=threads)
         self._counters = {"node_visits": 0, "triangle_tests": 0}
         self.build()
 
@@ -282,10 +293,11 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     from matrixtree.core import _as_polydata, _check_render_settings
 
     pd = _as_polydata(mesh)
-    w, h, camera = _check_render_settings(size, traversal, triangle_test, camera, tree, backend)
+    w, h, camera, height, threads, leaf_scale = _check_render_settings(size, traversal, triangle_test, camera, tree,
+                                                                       backend, height, threads, leaf_scale)
     if check_backend(backend) == "opencl":
         raise _no_opencl("render")
-    kind = "sah" if tree == "sah" else _TREE_NAMES[tree_type(tree)]
+    kind = "sah" if tree == "sah" else _engine_tree(tree)
     rc = caster if caster is not None else SurfaceCaster()
     if not isinstance(rc, SurfaceCaster):
         raise TypeError(f"caster must be the 'caster' of an earlier render, got {type(rc).__name__}")
@@ -297,7 +309,7 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         angle = 30.0
     else:
         eye, target, up = (tuple(float(v) for v in camera[i]) for i in range(3))
-        angle = float(camera[3]) if len(camera) == 4 else 30.0
+        angle = 30.0 if camera[3] is None else camera[3]
     view = dict(eye=list(eye), target=list(target), up=list(up), view_angle=angle, shadows=bool(shadows),
                 test=triangle_test, counters=bool(counters))
     if kind == "sah":
@@ -328,9 +340,10 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
 
     from matrixtree.core import _level_range, _tree_mesh_input
 
+    tree = _engine_tree(tree)
     mesh = _tree_mesh_input(mesh)
     lo, hi, leaves_only = _level_range(levels)
-    loc = engine().CellLocator(*cell_arrays(mesh), tree=_TREE_NAMES[tree_type(tree)], height=int(height),
+    loc = engine().CellLocator(*cell_arrays(mesh), tree=tree, height=int(height),
                                exact_overlap=bool(exact_overlap))
     h = loc.stats()["height"]
     nodes = loc.nodes(h, h) if leaves_only else loc.nodes(lo, hi)
@@ -381,20 +394,21 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
 
     if check_backend(backend) == "opencl":
         raise _no_opencl("render_volume")
-    image, w, h, color, opacity, cam, sp = _prepare_volume_render(volume, size, camera, color, opacity, spacing,
-                                                                  origin)
+    v = _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
+                               opacity_unit_distance, image_sample_distance, early_termination, threads)
+    image, cam = v.image, v.camera
     scalars = np.ascontiguousarray(vtk_to_numpy(image.GetPointData().GetScalars()))
-    table, lo, hi = transfer_table(scalars, color, opacity)
+    table, lo, hi = transfer_table(scalars, v.color, v.opacity)
     vol = engine().Volume(scalars, list(image.GetDimensions()), table, lo, hi,
-                          unit_distance=float(opacity_unit_distance or sp.mean()), sparse=True, threads=int(threads))
-    rgba, st = vol.render(w, h, position=list(cam.GetPosition()), focal_point=list(cam.GetFocalPoint()),
+                          unit_distance=float(v.opacity_unit_distance), sparse=True, threads=int(v.threads))
+    rgba, st = vol.render(v.width, v.height, position=list(cam.GetPosition()), focal_point=list(cam.GetFocalPoint()),
                           view_up=list(cam.GetViewUp()), view_angle=cam.GetViewAngle(),
                           parallel=bool(cam.GetParallelProjection()), parallel_scale=cam.GetParallelScale(),
                           origin=list(image.GetOrigin()), spacing=list(image.GetSpacing()),
-                          sample_distance=float(sample_distance or 0.5 * sp.min()),
-                          image_sample_distance=float(image_sample_distance),
-                          early_termination=float(early_termination), double_precision=bool(double_precision),
-                          shade=bool(shade), threads=int(threads))
+                          sample_distance=float(v.sample_distance),
+                          image_sample_distance=float(v.image_sample_distance),
+                          early_termination=float(v.early_termination), double_precision=bool(double_precision),
+                          shade=bool(shade), threads=int(v.threads))
     img = np.ascontiguousarray(rgba[::-1])
     if not return_stats:
         return img

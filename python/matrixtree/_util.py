@@ -14,16 +14,22 @@ from vtkmodules.util.misc import calldata_type
 from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonCore import VTK_STRING, vtkPoints
 
+from matrixtree import _checks
+
 TREES = {"octree": 0, "kdtree": 1}
+# vtkMatrixTree's TreeType: the matrix trees and the split-plane / hybrid trees (docs/trees.md).
+RAY_TREES = {"octree": 0, "kdtree": 1, "implicit-kd": 2, "bsp": 3, "hybrid": 4}
+SPLIT_TREES = ("implicit-kd", "bsp")
 BACKENDS = ("cpu", "opencl")
 
 
-def tree_type(tree: str) -> int:
-    """The VTK classes' TreeType value of ``"octree"`` or ``"kdtree"``; ValueError otherwise."""
+def tree_type(tree: str, trees: dict = TREES) -> int:
+    """The VTK classes' TreeType value of a name of ``trees`` (default: ``"octree"`` or
+    ``"kdtree"``, the cell locator's); ValueError otherwise."""
     try:
-        return TREES[tree]
-    except KeyError:
-        raise ValueError(f"tree must be one of {sorted(TREES)}, got {tree!r}") from None
+        return trees[tree]
+    except (KeyError, TypeError):
+        raise ValueError(f"tree must be one of {sorted(trees)}, got {tree!r}") from None
 
 
 def check_backend(backend: str) -> str:
@@ -38,7 +44,10 @@ def points3(a, name: str) -> np.ndarray:
 
     ValueError, naming the argument ``name``, for any other shape.
     """
-    arr = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+    try:
+        arr = np.ascontiguousarray(np.asarray(a, dtype=np.float64))
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an (N, 3) array of numbers") from None
     if arr.ndim == 1 and arr.size == 3:
         arr = arr.reshape(1, 3)
     if arr.ndim != 2 or arr.shape[1] != 3:
@@ -52,7 +61,10 @@ def segments(origins, directions, ends, length: float):
     o = points3(origins, "origins")
     if (directions is None) == (ends is None):
         raise ValueError("give exactly one of directions and ends")
-    e = points3(ends, "ends") if ends is not None else o + float(length) * points3(directions, "directions")
+    if ends is not None:
+        e = points3(ends, "ends")
+    else:
+        e = o + _checks.real(length, "length", 0.0, lo_open=True) * points3(directions, "directions")
     if e.shape != o.shape:
         raise ValueError(f"origins {o.shape} and ends/directions {e.shape} differ in shape")
     return o, np.ascontiguousarray(e)
@@ -84,26 +96,36 @@ def existing_file(path, kind: str) -> str:
     return path
 
 
-def run_reader(name: str, path: str):
+def run_reader(path: str, name: str):
     """Run the VTK reader ``name`` (``"module.Class"`` under ``vtkmodules``, imported now) on
-    ``path`` and return its output."""
+    ``path`` in this process and return its output; ValueError with the reader's message if it
+    reports an error. Untrusted files go through :func:`read_by_extension` instead."""
     module, cls = name.rsplit(".", 1)
     reader = getattr(importlib.import_module("vtkmodules." + module), cls)()
     reader.SetFileName(path)
-    reader.Update()
+    with VtkErrors(reader) as errors:
+        reader.Update()
+    if errors.messages:
+        raise ValueError(f"{path}: {errors.last}")
     return reader.GetOutput()
 
 
 def read_by_extension(path: str, readers: dict, unsupported: str):
-    """Run the reader that ``readers`` names for the end of ``path`` (see :func:`run_reader`).
+    """Run the reader that ``readers`` names for the end of ``path`` (see :func:`run_reader`) in
+    a child process (matrixtree._sandbox: VTK's readers crash on damaged files), and check the
+    cells it read.
 
     ``readers`` maps lower-case file endings (``".ply"``, ``".nii.gz"``) to reader names; a path
     with none of them raises ValueError with the message ``unsupported``, before any reading.
     """
+    from matrixtree import _sandbox
+
     low = path.lower()
     for ending, name in readers.items():
         if low.endswith(ending):
-            return run_reader(name, path)
+            out = _sandbox.read("matrixtree._util.run_reader", path, name.rsplit(".", 1)[1], name)
+            _sandbox.check_cells(out, path)
+            return out
     raise ValueError(unsupported)
 
 
@@ -138,3 +160,8 @@ class VtkErrors:
 
     def __exit__(self, *exc) -> None:
         self.obj.RemoveObserver(self._tag)
+
+    def raise_last(self, exc: type = RuntimeError, hint: str = "") -> None:
+        """Raise ``exc(last message + hint)`` if the block reported an error."""
+        if self.messages:
+            raise exc(self.last + hint)

@@ -115,7 +115,7 @@ def main(argv=None) -> int:
                    help=f"comma-separated subset of {','.join(METHODS)}")
     p.add_argument("--threads", type=int, default=0, help="OpenMP threads, 0 = all (default)")
     p.add_argument("--tree", choices=["octree", "kdtree"], default="octree", help="locate: tree kind")
-    a = p.parse_args(argv)
+    a = p.parse_intermixed_args(argv)  # options may come before, between or after the inputs
     methods = tuple(m for m in a.methods.split(",") if m)
     bad = [m for m in methods if m not in METHODS]
     if bad:
@@ -162,8 +162,8 @@ def main(argv=None) -> int:
             print(f"{len(pts):,} points in {grid.GetNumberOfCells():,} cells: {found:,} inside, "
                   f"{len(pts) - found:,} outside (-1); {ms:.1f} ms ({len(pts) / max(ms, 1e-9) / 1e3:.2f} M points/s)")
             print(f"wrote {stem}_cells.npy and {stem}_weights.npy")
-    except (OSError, ValueError, RuntimeError) as e:
-        print(f"error: {e}", file=sys.stderr)
+    except (OSError, ValueError, RuntimeError, MemoryError) as e:
+        print(f"error: {e or type(e).__name__}", file=sys.stderr)
         return 2
     print(f"done in {time.time() - t0:.1f} s")
     return 0

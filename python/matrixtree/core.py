@@ -18,18 +18,24 @@ from matrixtree._backend import VTK_MODULE
 
 if VTK_MODULE:
     from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
-
-from matrixtree import _meshstate
-from matrixtree._util import check_backend, existing_file, points3, read_by_extension, tree_type, vtk_points
+from matrixtree import _checks, _meshstate
+from matrixtree._readers import check_not_empty, read_obj, read_ply
+from matrixtree._util import (RAY_TREES, SPLIT_TREES, VtkErrors, check_backend, existing_file, points3, read_by_extension,
+                              tree_type, vtk_points)
 
 
 def _backend(backend: str) -> int:
     return vtkMatrixTree.OPENCL if check_backend(backend) == "opencl" else vtkMatrixTree.CPU
 
 
-_MESH_READERS = {".ply": "vtkIOPLY.vtkPLYReader", ".obj": "vtkIOGeometry.vtkOBJReader",
-                 ".stl": "vtkIOGeometry.vtkSTLReader", ".vtp": "vtkIOXML.vtkXMLPolyDataReader",
+# PLY and OBJ go through the checking readers of matrixtree._readers (VTK 9.1's crash on, or
+# read out of bounds for, truncated and malformed files); the others through VTK's readers in a
+# child process (matrixtree._sandbox), whose errors and crashes become ValueError.
+_MESH_READERS = {".stl": "vtkIOGeometry.vtkSTLReader", ".vtp": "vtkIOXML.vtkXMLPolyDataReader",
                  ".vtk": "vtkIOLegacy.vtkPolyDataReader"}
+#: Bytes per pixel a render holds at its peak: the engine's arrays (19), the output image's (23)
+#: and the numpy copies (15), rounded up.
+_RENDER_BYTES_PER_PIXEL = 64
 
 
 def read_mesh(path: str | os.PathLike) -> vtkPolyData:
@@ -39,7 +45,9 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     ----------
     path : str or os.PathLike
         A ``.ply``, ``.obj``, ``.stl``, ``.vtp`` or legacy ``.vtk`` file. OBJ files are
-        triangulated and their duplicated vertices merged (``vtkOBJReader`` does not merge).
+        triangulated and their duplicated vertices merged. PLY (ASCII and binary) and OBJ are
+        read by checking readers: every count in a PLY header is checked against the bytes that
+        follow and every face index against the vertices, before anything is allocated.
 
     Returns
     -------
@@ -51,7 +59,10 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     FileNotFoundError
         If ``path`` does not exist.
     ValueError
-        If the extension is not one of the above, or the file holds no polygons.
+        If the extension is not one of the above, the file is empty, truncated or malformed (the
+        message names the element, record or line; for ``.stl``, ``.vtp`` and ``.vtk``, read by
+        VTK in a child process, what the reader reported, or that it crashed or ran out of
+        memory or time), a face refers to a missing vertex, or the file holds no polygons.
 
     Examples
     --------
@@ -62,15 +73,31 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     """
     path = existing_file(path, "mesh")
     ext = os.path.splitext(path)[1].lower()
-    out = read_by_extension(path, _MESH_READERS,
-                            f"unsupported mesh extension {ext!r} (use .ply, .obj, .stl, .vtp or .vtk)")
+    if ext == ".ply":
+        out = read_ply(path)
+    elif ext == ".obj":
+        out = read_obj(path)
+    else:
+        unsupported = f"unsupported mesh extension {ext!r} (use .ply, .obj, .stl, .vtp or .vtk)"
+        if ext in _MESH_READERS:
+            check_not_empty(path, "mesh")
+        out = read_by_extension(path, _MESH_READERS, unsupported)  # in a child process: see _sandbox
+    out = _triangulated(out, merge_points=ext == ".obj")
+    if out.GetNumberOfPolys() == 0:
+        raise ValueError(f"{path} holds no polygons")
+    return out
+
+
+def _triangulated(out: vtkPolyData, merge_points: bool) -> vtkPolyData:
+    """The polygons and strips of ``out`` as triangles (vertices and lines dropped); with
+    ``merge_points`` coincident points merged (an OBJ file repeats them per texture corner)."""
     from vtkmodules.vtkFiltersCore import vtkCleanPolyData, vtkTriangleFilter
 
     tri = vtkTriangleFilter()
     tri.SetInputData(out)
     tri.PassVertsOff()
     tri.PassLinesOff()
-    if ext == ".obj":
+    if merge_points:
         clean = vtkCleanPolyData()
         clean.SetInputConnection(tri.GetOutputPort())
         clean.PointMergingOn()
@@ -82,21 +109,21 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     else:
         tri.Update()
         out = tri.GetOutput()
-    if out.GetNumberOfPolys() == 0:
-        raise ValueError(f"{path} holds no polygons")
     result = vtkPolyData()
     result.ShallowCopy(out)
     return result
 
 
-def _check_tree_settings(height, block_size, leaf_scale) -> None:
-    """ValueError for a MatrixTree height, block size or leaf scale out of range."""
-    if not (isinstance(height, (int, np.integer)) and 0 <= height <= 63):
-        raise ValueError(f"height must be an integer in [0, 63] (0 = automatic), got {height!r}")
+def _check_tree_settings(tree, height, block_size, leaf_scale, threads):
+    """(tree id, height, leaf_scale, threads) of MatrixTree's settings, checked; ValueError for
+    an unknown tree or a setting out of range."""
+    tree_id = tree_type(tree, RAY_TREES)
+    height = _checks.integer(height, "height", 0, 63, "0 = automatic")
     if block_size not in (1, 2, 4, 8, 16, 32):
         raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
-    if not leaf_scale > 0:
-        raise ValueError(f"leaf_scale must be > 0, got {leaf_scale!r}")
+    if leaf_scale is not None:
+        leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
+    return tree_id, height, leaf_scale, _checks.threads(threads)
 
 
 def _as_polydata(mesh) -> vtkPolyData:
@@ -115,32 +142,51 @@ def _as_polydata(mesh) -> vtkPolyData:
 
 
 class MatrixTree:
-    """A matrix octree or regular kd-tree over the triangles of a surface mesh.
+    """A matrix octree or kd-tree, an implicit general kd-tree or BSP tree, or the hybrid
+    matrix/SAH tree over the triangles of a surface mesh.
 
     Parameters
     ----------
     mesh : vtkPolyData, pyvista.PolyData, any vtkDataSet, or str
         The surface (polygons and strips are triangulated; other data sets contribute their
         boundary surface); a path is read with :func:`read_mesh`.
-    tree : {"octree", "kdtree"}, default: "octree"
-        Octree, or regular kd-tree (centre splits, one axis per level).
+    tree : {"octree", "kdtree", "implicit-kd", "bsp", "hybrid"}, default: "octree"
+        The matrix octree or regular kd-tree (centre splits, one axis per level; the fastest
+        builds); ``"implicit-kd"``, a kd-tree with SAH splits stored in the same per-level
+        matrices (the paper's §4.1); ``"bsp"``, an implicit BSP tree with 26-DOP planes (§4.2, a
+        slow build); ``"hybrid"``, a matrix octree with small SAH kd-trees in its leaves (§7).
+        docs/trees.md compares them.
     height : int, default: 0
-        Levels below the root, 0 = chosen from the scene (leaves about ``leaf_scale`` median
-        triangle extents wide).
+        Levels below the root (0..63), 0 = chosen from the scene (leaves about ``leaf_scale`` median
+        triangle extents wide); for ``"implicit-kd"`` and ``"bsp"`` the depth limit of the build
+        (0 = round(8 + 1.3 log2 N); a tree deeper than 46 levels fails to build).
     block_size : int, default: 8
-        Edge of the B^3 blocks of the block-sparse levels (power of two, 1..32).
+        Edge of the B^3 blocks of the block-sparse levels (power of two, 1..32); ``"implicit-kd"``
+        and ``"bsp"`` choose each level's block shape themselves.
     exact : bool, default: True
         Exact triangle/leaf overlap; False uses bounding boxes (faster build, more tests per ray).
-    leaf_scale : float, default: 2.0
-        Target leaf extent of the automatic height, in median triangle extents.
+    leaf_scale : float, optional
+        Target leaf extent of the automatic height, in median triangle extents (0.001..1000): default
+        2.0, and 4.0 for the hybrid's matrix part (its kd-trees split the larger leaves).
     threads : int, default: 0
-        OpenMP threads, 0 = all.
+        OpenMP threads (0..4096), 0 = all.
     backend : {"cpu", "opencl"}, default: "cpu"
         Where the build and the queries run: the OpenMP engine, or OpenCL kernels (same tree,
-        same answers). ``"opencl"`` without a device raises RuntimeError saying so.
+        same answers). ``"opencl"`` without a device raises RuntimeError saying so. The split
+        trees are built on the CPU and traced on the device by the stackless walk; ``"hybrid"``
+        has no OpenCL walk (ValueError).
     device : str, optional
         OpenCL device: ``"P:D"`` indices, a device number, or part of its name; default
         ``$MATRIXTREE_OPENCL_DEVICE``, else the first GPU, else the first device.
+
+    Raises
+    ------
+    ValueError
+        A setting out of the range given above.
+    RuntimeError
+        The build failed, with the engine's reason: a coordinate that is NaN, inf or beyond
+        +-1e30, a mesh spanning less than 1e-30, or a ``height`` whose leaf level would need more
+        than 1 GiB of pointers. If a later :meth:`build` fails, every query raises that reason.
 
     Examples
     --------
@@ -153,19 +199,22 @@ class MatrixTree:
     """
 
     def __init__(self, mesh, tree: str = "octree", height: int = 0, block_size: int = 8,
-                 exact: bool = True, leaf_scale: float = 2.0, threads: int = 0,
+                 exact: bool = True, leaf_scale: float | None = None, threads: int = 0,
                  backend: str = "cpu", device: str | None = None):
         self.mesh = _as_polydata(mesh)
         backend_id = _backend(backend)
-        _check_tree_settings(height, block_size, leaf_scale)
+        tree_id, height, leaf_scale, threads = _check_tree_settings(tree, height, block_size, leaf_scale, threads)
+        if tree == "hybrid" and backend_id == vtkMatrixTree.OPENCL:
+            raise ValueError("the hybrid tree has no OpenCL walk: use backend='cpu'")
         self._tree = vtkMatrixTree()
         self._tree.SetDataSet(self.mesh)
-        self._tree.SetTreeType(tree_type(tree))
-        self._tree.SetHeight(int(height))
+        self._tree.SetTreeType(tree_id)
+        self._tree.SetHeight(height)
         self._tree.SetBlockSize(int(block_size))
         self._tree.SetExactOverlap(bool(exact))
-        self._tree.SetLeafScale(float(leaf_scale))
-        self._tree.SetNumberOfThreads(int(threads))
+        if leaf_scale is not None:
+            (self._tree.SetHybridLeafScale if tree == "hybrid" else self._tree.SetLeafScale)(leaf_scale)
+        self._tree.SetNumberOfThreads(threads)
         self._tree.SetBackend(backend_id)
         if device is not None:
             self._tree.SetOpenCLDevice(str(device))
@@ -179,34 +228,53 @@ class MatrixTree:
     def build(self) -> "MatrixTree":
         """(Re)build the tree now. Queries rebuild by themselves when the mesh changed (points
         moved, even in place through a numpy view; cells replaced; see matrixtree._meshstate).
-        Returns self."""
+        Returns self.
+
+        RuntimeError with the engine's reason if the build fails; every query then raises it too."""
         self._state = _meshstate.fingerprint(self.mesh)
-        if not self._tree.Build():
+        with VtkErrors(self._tree) as errors:
+            ok = self._tree.Build()
+        if not ok:
+            why = errors.last or "building the matrix tree failed"
             if self._tree.GetBackend() == vtkMatrixTree.OPENCL:
-                raise RuntimeError("building the matrix tree with the OpenCL backend failed: no OpenCL "
-                                   "device, a device error, or bad input (the VTK error above says which); "
-                                   "use backend='cpu' or install an OpenCL driver (e.g. pocl-opencl-icd)")
-            raise RuntimeError("building the matrix tree failed: the mesh has non-finite coordinates "
-                               "or bad connectivity (see the VTK error above)")
+                why += " [use backend='cpu', or install an OpenCL driver (e.g. pocl-opencl-icd)]"
+            raise RuntimeError(why)
         return self
 
-    def _sync(self) -> None:
+    def _query(self, method, *args):
+        """``vtk_tree.<method>(*args)`` on a tree that matches the mesh (rebuilt if it changed);
+        RuntimeError with VTK's message if it reports one (a failed build: every query raises
+        its reason)."""
         if _meshstate.fingerprint(self.mesh) != self._state:
             self.build()
+        with VtkErrors(self._tree) as errors:
+            out = getattr(self._tree, method)(*args)
+        errors.raise_last(RuntimeError)
+        return out
 
     def stats(self) -> dict:
-        """Build statistics: height, triangles, leaves, references, bytes (the tree with its leaf
-        triangles), the leaf triangles' bytes alone, per-level bytes, blocks and node counts, the root box, per-phase build times (ms) and the total (ms)."""
+        """Build statistics: tree, height, triangles, leaves, references, nodes, bytes (the tree
+        with its leaf triangles), the leaf triangles' bytes alone (``leaf_triangle_bytes``),
+        per-level bytes, blocks and dimensions, the root box, per-phase build times (ms) and the total (ms).
+
+        The level entries describe the matrix levels (for the hybrid, its matrix part). For
+        ``"implicit-kd"`` and ``"bsp"`` also ``pointer_tree_bytes``: the same tree as 8-byte
+        pointer nodes, what the implicit layout's storage is compared with."""
         t = self._tree
         h = t.GetTreeHeight()
         root = [0.0] * 6
         t.GetRootBounds(root)
+        name = t.GetTreeTypeAsString()
+        extra = {}
+        if name in SPLIT_TREES:
+            extra = {"pointer_tree_bytes": t.GetPointerTreeMemorySize()}
         return {
-            "tree": "octree" if t.GetTreeType() == 0 else "kdtree",
+            "tree": name,
             "height": h,
             "triangles": t.GetNumberOfTriangles(),
             "leaves": t.GetNumberOfLeaves(),
             "references": t.GetNumberOfReferences(),
+            "nodes": t.GetNumberOfNodes(),
             "bytes": t.GetMemorySize(),
             "leaf_triangle_bytes": t.GetLeafTrianglesMemorySize(),
             "level_bytes": [t.GetLevelMemorySize(l) for l in range(h + 1)],
@@ -221,6 +289,7 @@ class MatrixTree:
             "conversion_ms": t.GetConversionTime(),
             "backend": t.GetBackendAsString(),
             "device": t.GetOpenCLDeviceName() if t.GetBackend() == vtkMatrixTree.OPENCL else "",
+            **extra,
         }
 
     def find_leaves(self, points) -> np.ndarray:
@@ -235,11 +304,12 @@ class MatrixTree:
         numpy.ndarray, shape (N, 5), int32
             ``level, i, j, k, exists`` per point: the existing leaf containing it (exists = 1)
             or the largest empty node containing it (exists = 0); level -1 outside the tree.
+            ``"implicit-kd"``, ``"bsp"``: the leaf on the point's side of every plane (the left
+            side on a plane), exists = 0 for an empty leaf; ``"hybrid"``: its matrix part's.
         """
         p = points3(points, "points")
-        self._sync()
         out = vtkIntArray()
-        self._tree.FindLeaves(numpy_to_vtk(p, deep=False), out)
+        self._query("FindLeaves", numpy_to_vtk(p, deep=False), out)
         return vtk_to_numpy(out).reshape(-1, 5).copy()
 
     def intersect(self, origins, directions, t_max: float = np.inf):
@@ -248,7 +318,9 @@ class MatrixTree:
         Parameters
         ----------
         origins, directions : array_like, shape (N, 3)
+            A ray with a NaN or infinite component, or a zero direction, misses.
         t_max : float, default: inf
+            At least 0 (``inf`` allowed).
 
         Returns
         -------
@@ -261,10 +333,12 @@ class MatrixTree:
         d = points3(directions, "directions")
         if o.shape != d.shape:
             raise ValueError(f"origins {o.shape} and directions {d.shape} must have the same shape")
-        self._sync()
+        t_max = float(t_max)
+        if not t_max >= 0:
+            raise ValueError(f"t_max must be >= 0 (inf allowed), got {t_max!r}")
         t = vtkDoubleArray()
         c = vtkIdTypeArray()
-        self._tree.IntersectRays(numpy_to_vtk(o, deep=False), numpy_to_vtk(d, deep=False), float(t_max), t, c)
+        self._query("IntersectRays", numpy_to_vtk(o, deep=False), numpy_to_vtk(d, deep=False), t_max, t, c)
         return vtk_to_numpy(t).copy(), vtk_to_numpy(c).copy()
 
     @property
@@ -278,21 +352,29 @@ _TRAVERSALS = {"restart": 0, "stack": 1, "shortstack": 2}
 _TESTS = {"moller-trumbore": 0, "mt": 0, "watertight": 1}
 
 
-def _check_render_settings(size, traversal: str, triangle_test: str, camera, tree: str, backend: str):
-    """(width, height, camera) of :func:`render`'s arguments; ValueError for a bad size,
-    traversal, triangle test or camera, or the SAH baseline asked for on another backend."""
-    if tree == "sah" and backend != "cpu":
-        raise ValueError("the SAH kd-tree baseline runs on the CPU only: use backend='cpu'")
-    w, h = int(size[0]), int(size[1])
-    if w < 1 or h < 1:
-        raise ValueError(f"size must be two positive integers, got {size!r}")
+def _check_render_settings(size, traversal: str, triangle_test: str, camera, tree: str, backend: str, height,
+                           threads, leaf_scale):
+    """(width, height, camera, tree height, threads, leaf_scale) of :func:`render`'s arguments,
+    checked; ValueError for a bad size, setting, traversal, triangle test or camera, or a
+    CPU-only tree asked for on another backend."""
+    w, h = _checks.image_size(size, _RENDER_BYTES_PER_PIXEL)
+    height = _checks.integer(height, "height", 0, 63, "0 = automatic")
+    threads = _checks.threads(threads)
+    if leaf_scale is not None:
+        leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
+    if camera is not None:
+        if len(camera) not in (3, 4):
+            raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
+        camera = _checks.camera(*camera, up_along_view_ok=True)
+    if tree != "sah":
+        tree_type(tree, {**RAY_TREES, "sah": None})  # ValueError naming every tree
     if traversal not in _TRAVERSALS:
         raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
     if triangle_test not in _TESTS:
         raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
-    if camera is not None and len(camera) not in (3, 4):
-        raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
-    return w, h, camera
+    if tree in ("sah", "hybrid") and backend != "cpu":
+        raise ValueError(f"the {tree!r} tree runs on the CPU only: use backend='cpu'")
+    return w, h, camera, height, threads, leaf_scale
 
 
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
@@ -305,26 +387,30 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     ----------
     mesh : vtkPolyData, pyvista.PolyData or str
     size : (int, int), default: (800, 800)
-        Image width and height.
-    tree : {"octree", "kdtree", "sah"}, default: "octree"
-        A matrix octree or regular matrix kd-tree, or the baseline: a SAH kd-tree (Wald & Havran
-        build, 8-byte nodes; CPU only) traced with ``traversal``.
+        Image width and height, each 1..16384; refused (ValueError) when the image arrays (about
+        64 bytes per pixel) would not fit in the memory available.
+    tree : {"octree", "kdtree", "implicit-kd", "bsp", "hybrid", "sah"}, default: "octree"
+        A tree of :class:`MatrixTree` (the matrix octree or kd-tree, the implicit kd-tree or BSP
+        tree, the hybrid), or the baseline: a SAH kd-tree (Wald & Havran build, 8-byte pointer
+        nodes; CPU only) traced with ``traversal``.
     height : int, default: 0
-        Matrix-tree height, 0 = automatic (from the scene, see ``leaf_scale``).
+        Matrix-tree height, 0 = automatic (from the scene, see ``leaf_scale``); the depth limit of
+        ``"implicit-kd"`` and ``"bsp"`` (see :class:`MatrixTree`).
     traversal : {"stack", "shortstack", "restart"}, default: "stack"
         SAH kd-tree traversal: a full stack, a short stack of 3 entries, or KD-Restart. Ignored
-        for matrix trees (they walk leaf to neighbour, no stack).
+        for the trees of :class:`MatrixTree` (each has its production walk).
     triangle_test : {"moller-trumbore", "watertight"}, default: "moller-trumbore"
         Moller-Trumbore is the fastest; the watertight test (Woop, Benthin & Wald 2013) lets no ray
         slip between the triangles of a closed mesh, at a few percent of speed.
     leaf_scale : float, optional
         Automatic height: the leaf extent aimed at, as a multiple of the median triangle extent
         (engine default 2.0, fastest build; 1.0 renders faster on most meshes, see
-        docs/bench_rays.md).
+        docs/bench_rays.md); for ``"hybrid"`` its matrix part's (default 4.0).
     camera : None or sequence, default: None
         ``None`` frames the mesh automatically; otherwise a pyvista-style camera position
         ``[position, focal_point, view_up]`` (optionally with a fourth item, the vertical view
-        angle in degrees, default 30).
+        angle in degrees, 0.01..179, default 30): finite, with the position away from the focal
+        point. A view up along the view direction is replaced by the y (or x) axis.
     shadows : bool, default: True
     threads : int, default: 0
     counters : bool, default: False
@@ -334,7 +420,8 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         Reuse a caster (and its tree) across frames; the tree is rebuilt only if the mesh changed.
     backend : {"cpu", "opencl"}, default: "cpu"
         Build and trace on the OpenMP engine or with OpenCL kernels (see :class:`MatrixTree`);
-        with "opencl" the per-pixel ``node_visits``/``triangle_tests`` are 0.
+        with "opencl" the per-pixel ``node_visits``/``triangle_tests`` are 0. ``"sah"`` and
+        ``"hybrid"`` run on the CPU only (ValueError).
 
     Returns
     -------
@@ -352,21 +439,22 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     (48, 64, 3)
     """
     pd = _as_polydata(mesh)
-    w, h, camera = _check_render_settings(size, traversal, triangle_test, camera, tree, backend)
+    w, h, camera, height, threads, leaf_scale = _check_render_settings(size, traversal, triangle_test, camera, tree,
+                                                                       backend, height, threads, leaf_scale)
     rc = caster if caster is not None else vtkMatrixTreeRayCaster()
     if tree == "sah":
         rc.SetAcceleratorToSAHKdTree()
         rc.SetSAHTraversal(_TRAVERSALS[traversal])
     else:
         rc.SetAcceleratorToMatrixTree()
-        rc.GetTree().SetTreeType(tree_type(tree))
+        rc.GetTree().SetTreeType(RAY_TREES[tree])
     rc.SetTriangleTest(_TESTS[triangle_test])
     if leaf_scale is not None:
-        rc.GetTree().SetLeafScale(float(leaf_scale))
+        (rc.GetTree().SetHybridLeafScale if tree == "hybrid" else rc.GetTree().SetLeafScale)(leaf_scale)
     rc.GetTree().SetBackend(_backend(backend))
-    rc.GetTree().SetHeight(int(height))
-    rc.GetTree().SetNumberOfThreads(int(threads))
-    rc.SetNumberOfThreads(int(threads))
+    rc.GetTree().SetHeight(height)
+    rc.GetTree().SetNumberOfThreads(threads)
+    rc.SetNumberOfThreads(threads)
     rc.SetInputData(pd)
     rc.SetImageSize(w, h)
     rc.SetShadows(bool(shadows))
@@ -375,12 +463,15 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         rc.AutoCameraOn()
     else:
         rc.AutoCameraOff()
-        rc.SetPosition(*map(float, camera[0]))
-        rc.SetFocalPoint(*map(float, camera[1]))
-        rc.SetViewUp(*map(float, camera[2]))
-        rc.SetViewAngle(float(camera[3]) if len(camera) == 4 else 30.0)
+        rc.SetPosition(*camera[0])
+        rc.SetFocalPoint(*camera[1])
+        rc.SetViewUp(*camera[2])
+        rc.SetViewAngle(30.0 if camera[3] is None else camera[3])
     rc.Modified()
-    rc.Update()
+    with VtkErrors(rc.GetTree()) as tree_errors, VtkErrors(rc) as errors:
+        rc.Update()
+    tree_errors.raise_last(RuntimeError)  # the build's reason comes before the caster's summary
+    errors.raise_last(RuntimeError)
     img = rc.GetOutput()
     pdata = img.GetPointData()
 
@@ -580,28 +671,38 @@ def _tree_mesh_input(mesh) -> vtkDataSet:
 
 
 def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_overlap: bool = False):
-    """The matrix tree over a mesh or grid as boxes, for plotting (one voxel per existing node).
+    """The tree over a mesh or grid for plotting: a matrix tree's nodes as boxes (one voxel per
+    existing node), or the split planes of an implicit kd-tree, BSP tree or hybrid tree.
 
     Parameters
     ----------
     mesh : vtkDataSet, pyvista dataset or str
         Any data set (its cells are indexed; a surface mesh's triangles), or a mesh file path.
-    tree : {"octree", "kdtree"}, default: "octree"
+        ``"implicit-kd"``, ``"bsp"`` and ``"hybrid"`` index triangles: a data set that is not a
+        surface contributes its boundary surface.
+    tree : {"octree", "kdtree", "implicit-kd", "bsp", "hybrid"}, default: "octree"
+        The cell locator's matrix octree or kd-tree, or a tree of :class:`MatrixTree`.
     height : int, default: 0
-        Tree height; 0 = automatic (the cell locator's rule: leaf extent from the median cell).
+        Tree height; 0 = automatic (the cell locator's rule: leaf extent from the median cell);
+        for ``"implicit-kd"`` and ``"bsp"`` the depth limit of their build.
     levels : None, int or (int, int), default: None
         Which levels to output: ``None`` = every level from the root to the leaves, an int = that
-        level only, ``(lo, hi)`` = levels lo..hi (``hi = -1``: the leaf level).
+        level only, ``(lo, hi)`` = levels lo..hi (``hi = -1``: the leaf level; for the split
+        planes, every level).
     exact_overlap : bool, default: False
         Bounding-box cell/box overlap (the cell locator's default) or exact (a separating-axis
-        test: fewer references on tetrahedra, a slower build).
+        test: fewer references on tetrahedra, a slower build); for ``"hybrid"``, of its matrix part.
 
     Returns
     -------
     pyvista.UnstructuredGrid
-        Voxels with cell arrays ``level``, ``occupancy`` (fraction of an inner node's children
-        that exist; 1 for leaves) and ``cell_count`` (cells overlapping the node); field data
-        ``tree_height``.
+        Matrix trees: voxels with cell arrays ``level``, ``occupancy`` (fraction of an inner
+        node's children that exist; 1 for leaves) and ``cell_count`` (cells overlapping the node);
+        field data ``tree_height``. ``"implicit-kd"``, ``"bsp"``: one polygon per inner node, its
+        split plane clipped to the node's cell, with cell arrays ``level`` and ``direction`` (0-2
+        the axes, 3-12 the BSP tree's diagonals); ``"hybrid"``: voxels for its matrix nodes
+        (``direction`` -1) and polygons for its leaves' kd-trees, whose planes start at the matrix
+        leaves' level ``tree_height``. ``levels=-1`` keeps the matrix leaves only.
 
     Examples
     --------
@@ -613,20 +714,32 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     import pyvista as pv
     from matrixtree_vtk import vtkMatrixTreeRepresentation
 
+    tree_id = tree_type(tree, RAY_TREES)
     mesh = _tree_mesh_input(mesh)
+    if tree_id >= RAY_TREES["implicit-kd"]:
+        mesh = _as_polydata(mesh)
     rep = vtkMatrixTreeRepresentation()
-    rep.SetTreeType(tree_type(tree))
+    rep.SetTreeType(tree_id)
     rep.SetHeight(int(height))
     rep.SetExactOverlap(bool(exact_overlap))
     lo, hi, leaves_only = _level_range(levels)
+    if leaves_only and tree in SPLIT_TREES:
+        raise ValueError(f"levels=-1: a {tree!r} tree draws its inner nodes' planes, its leaves have none; "
+                         "give a level or (lo, hi)")
     rep.SetMinLevel(lo)
     rep.SetMaxLevel(hi)
     rep.SetInputData(mesh)
-    rep.Update()
+    with VtkErrors(rep) as errors:
+        rep.Update()
+    if errors.last:
+        raise RuntimeError(f"tree_mesh: {errors.last}")
     out = pv.wrap(rep.GetOutput())
     if leaves_only and out.n_cells:
         h = int(out.field_data["tree_height"][0])
-        out = out.extract_cells(np.flatnonzero(out.cell_data["level"] == h))
+        keep = np.asarray(out.cell_data["level"]) == h
+        if "direction" in out.cell_data:  # the hybrid: its matrix leaves, not its kd roots' planes
+            keep &= np.asarray(out.cell_data["direction"]) == -1
+        out = out.extract_cells(np.flatnonzero(keep))
         out.field_data["tree_height"] = [h]
     return out
 

@@ -22,7 +22,7 @@ from matrixtree._backend import VTK_MODULE
 if VTK_MODULE:
     from matrixtree_vtk import vtkMatrixTreeLocator
 
-from matrixtree import _meshstate
+from matrixtree import _checks, _meshstate
 from matrixtree._util import VtkErrors, bounds6, check_backend, points3, segments, tree_type, vtk_points
 
 __all__ = ["CellLocator", "cached_memory", "release_cached_memory"]
@@ -88,11 +88,26 @@ class CellLocator(_meshstate.RebuildOnChange):
         device number, or part of a device name; default: ``$MATRIXTREE_OPENCL_DEVICE``, else the
         first GPU, else the first device.
 
+    Raises
+    ------
+    ValueError
+        A setting out of its range (``height`` 0..63, ``threads`` 0..4096), an unknown ``tree``
+        or ``backend``, or a data set without cells.
+    RuntimeError
+        The build failed; the message is the engine's reason: a coordinate that is NaN, inf or
+        beyond +-1e30, points spanning less than 1e-30, a cell referring to a missing point, or a
+        ``height`` whose leaf level would need more than 1 GiB. Should a later rebuild fail (the
+        data set changed), every query raises RuntimeError
+        with that same reason.
+
     Notes
     -----
     Every query first checks whether the data set changed since the tree was built (points
     moved, even in place through a numpy view; cells or points replaced; ``Modified()`` called:
     see ``matrixtree._meshstate``) and rebuilds the tree if so; ``builds`` counts the builds.
+    Query points (and segment ends) that are NaN or infinite are not an error: such a point
+    lies in no cell (-1), a segment through one hits nothing, and it has no closest point
+    (cell -1, point NaN, squared distance inf).
 
     See Also
     --------
@@ -117,13 +132,15 @@ class CellLocator(_meshstate.RebuildOnChange):
             raise TypeError(f"dataset must be a vtkDataSet (or a pyvista mesh), got {type(dataset).__name__}")
         tree_id = tree_type(tree)
         check_backend(backend)
+        height = _checks.integer(height, "height", 0, 63, "levels below the root, 0 = automatic")
+        threads = _checks.threads(threads)
         if dataset.GetNumberOfCells() == 0:
             raise ValueError("dataset has no cells")
         self.dataset = dataset
         self.vtk_locator = vtkMatrixTreeLocator()
         self.vtk_locator.SetTreeType(tree_id)
-        self.vtk_locator.SetHeight(int(height))
-        self.vtk_locator.SetNumberOfThreads(int(threads))
+        self.vtk_locator.SetHeight(height)
+        self.vtk_locator.SetNumberOfThreads(threads)
         if backend == "opencl":
             self.vtk_locator.SetBackendToOpenCL()
             if device is not None:
@@ -134,7 +151,19 @@ class CellLocator(_meshstate.RebuildOnChange):
         self._build()
 
     def _build_tree(self) -> None:
-        self.vtk_locator.ForceBuildLocator()
+        with VtkErrors(self.vtk_locator) as errors:
+            self.vtk_locator.ForceBuildLocator()
+        errors.raise_last(RuntimeError)
+
+    def _query(self, method, *args) -> None:
+        """Call ``vtk_locator.<method>(*args)`` on a tree that matches the data set; RuntimeError
+        with VTK's message if it reports an error (a failed build: every query then raises its
+        reason)."""
+        self._sync()
+        with VtkErrors(self.vtk_locator) as errors:
+            getattr(self.vtk_locator, method)(*args)
+        opencl = self.backend == "opencl" and method == "FindCells"
+        errors.raise_last(RuntimeError, " [CellLocator: backend='cpu' needs no OpenCL]" if opencl else "")
 
     def locate(self, points, *, return_pcoords: bool = False, return_weights: bool = False):
         """The cell containing each point (VTK's FindCell), or -1.
@@ -174,17 +203,12 @@ class CellLocator(_meshstate.RebuildOnChange):
         ids = vtkIdTypeArray()
         pc = vtkDoubleArray() if return_pcoords else None
         w = vtkDoubleArray() if return_weights else None
-        self._sync()
-        with VtkErrors(self.vtk_locator) as errors:
-            self.vtk_locator.FindCells(vtk_points(p), ids, pc, w)
-        if errors.messages:
-            hint = " [CellLocator: backend='cpu' needs no OpenCL]" if self.backend == "opencl" else ""
-            raise RuntimeError(errors.last + hint)
+        self._query("FindCells", vtk_points(p), ids, pc, w)
         out = [vtk_to_numpy(ids).astype(np.int64, copy=True)]
         if return_pcoords:
             out.append(vtk_to_numpy(pc).reshape(-1, 3).copy())
         if return_weights:
-            out.append(vtk_to_numpy(w).reshape(len(p), -1).copy())
+            out.append(vtk_to_numpy(w).reshape(len(p), w.GetNumberOfComponents()).copy())
         return out[0] if len(out) == 1 else tuple(out)
 
     def trace(self, origins, directions=None, *, ends=None, length: float = 1.0, tolerance: float = 0.0):
@@ -204,7 +228,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         length : float, default: 1.0
             Scale of ``directions``.
         tolerance : float, default: 0.0
-            VTK's intersection tolerance.
+            VTK's intersection tolerance: finite, >= 0.
 
         Returns
         -------
@@ -224,10 +248,10 @@ class CellLocator(_meshstate.RebuildOnChange):
         (True, True)
         """
         o, e = segments(origins, directions, ends, length)
-        self._sync()
+        tolerance = _checks.real(tolerance, "tolerance", 0.0)
         t, ids, x = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
-        self.vtk_locator.IntersectSegments(numpy_to_vtk(o, deep=True), numpy_to_vtk(e, deep=True),
-                                           float(tolerance), t, ids, x)
+        self._query("IntersectSegments", numpy_to_vtk(o, deep=True), numpy_to_vtk(e, deep=True), tolerance,
+                    t, ids, x)
         return (vtk_to_numpy(t).copy(), vtk_to_numpy(ids).astype(np.int64, copy=True),
                 vtk_to_numpy(x).reshape(-1, 3).copy())
 
@@ -244,9 +268,9 @@ class CellLocator(_meshstate.RebuildOnChange):
         closest : numpy.ndarray, shape (n, 3)
             Closest points.
         cell_ids : numpy.ndarray
-            The cell each closest point lies on.
+            The cell each closest point lies on; -1 for a NaN or infinite query point.
         dist2 : numpy.ndarray
-            Squared distances.
+            Squared distances (inf where the cell is -1; the closest point is NaN there).
 
         Examples
         --------
@@ -257,9 +281,8 @@ class CellLocator(_meshstate.RebuildOnChange):
         (True, 9.0)
         """
         p = points3(points, "points")
-        self._sync()
         cp, ids, d2 = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
-        self.vtk_locator.FindClosestPoints(vtk_points(p), cp, ids, d2)
+        self._query("FindClosestPoints", vtk_points(p), cp, ids, d2)
         return (vtk_to_numpy(cp).reshape(-1, 3).copy(), vtk_to_numpy(ids).astype(np.int64, copy=True),
                 vtk_to_numpy(d2).copy())
 
@@ -350,7 +373,7 @@ class CellLocator(_meshstate.RebuildOnChange):
         [0]
         """
         a, b = points3(pointa, "pointa")[0], points3(pointb, "pointb")[0]
-        tol = float(tolerance)
+        tol = _checks.real(tolerance, "tolerance", 0.0)
         self._sync()
         # The VTK class lists the cells of the leaves the segment crosses (without a tolerance);
         # the answer is those of them whose boxes, grown by the tolerance, the segment crosses.

@@ -12,6 +12,7 @@ Where the VTK module does not import, ``render_volume`` is the engine extension'
 from __future__ import annotations
 
 import os
+from types import SimpleNamespace
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
@@ -23,10 +24,16 @@ from matrixtree._backend import VTK_MODULE
 if VTK_MODULE:
     from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
 
+from matrixtree import _checks
+from matrixtree._readers import check_not_empty
 from matrixtree._util import VtkErrors, check_backend, existing_file, read_by_extension
 
 __all__ = ["default_transfer_functions", "read_volume", "render_volume", "frame_camera"]
 
+
+#: Bytes per pixel a volume render holds at its peak: the float RGBA image (16), the 8-bit one (4),
+#: the engine's accumulation buffers (about 32) and the numpy copy (16), rounded up.
+_VOLUME_BYTES_PER_PIXEL = 64
 
 _VOLUME_READERS = {".mhd": "vtkIOImage.vtkMetaImageReader", ".mha": "vtkIOImage.vtkMetaImageReader",
                    ".nii": "vtkIOImage.vtkNIFTIImageReader", ".nii.gz": "vtkIOImage.vtkNIFTIImageReader",
@@ -53,7 +60,9 @@ def read_volume(path: str | os.PathLike) -> vtkImageData:
     FileNotFoundError
         If ``path`` does not exist.
     ValueError
-        If the extension is unknown or the file holds no point scalars.
+        If the extension is unknown, the file is empty, the reader reports an error, crashes or
+        runs out of memory or time on it (it runs in a child process, see
+        ``matrixtree._sandbox``), or the file holds no point scalars.
 
     Examples
     --------
@@ -63,6 +72,7 @@ def read_volume(path: str | os.PathLike) -> vtkImageData:
     (68, 68, 68)
     """
     path = existing_file(path, "volume")
+    check_not_empty(path, "volume")
     read = read_by_extension(path, _VOLUME_READERS, f"unknown volume format: {path}")
     out = vtkImageData()
     out.ShallowCopy(read)
@@ -194,9 +204,11 @@ def frame_camera(volume, azimuth: float = 30.0, elevation: float = 20.0, view_an
     return cam
 
 
-def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin):
-    """:func:`render_volume`'s inputs checked and completed: (image, width, height, color,
-    opacity, camera, |spacing|). ValueError for the bad input its docstring lists."""
+def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
+                           opacity_unit_distance, image_sample_distance, early_termination, threads):
+    """:func:`render_volume`'s inputs checked and completed, for both backends: a namespace with
+    image, width, height, color, opacity, camera and the numeric settings with their defaults
+    filled in. ValueError for the bad input :func:`render_volume`'s docstring lists."""
     image = _as_image(volume, spacing, origin)
     s = image.GetPointData().GetScalars()
     if image.GetNumberOfPoints() == 0 or s is None:
@@ -204,20 +216,41 @@ def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin
     if s.GetNumberOfComponents() != 1:
         raise ValueError(f"the volume has {s.GetNumberOfComponents()}-component scalars; pass one component")
     dims = image.GetDimensions()
+    if s.GetNumberOfTuples() != image.GetNumberOfPoints():
+        raise ValueError(f"the volume's scalar array has {s.GetNumberOfTuples()} values for "
+                         f"{dims[0]}x{dims[1]}x{dims[2]} = {image.GetNumberOfPoints()} points: one per point is needed")
     if min(dims) < 2:
         raise ValueError(f"the volume is {dims[0]}x{dims[1]}x{dims[2]} points; at least 2 along every axis are needed")
     sp = np.abs(np.array(image.GetSpacing(), dtype=float))
     if not np.all(np.isfinite(sp)) or np.any(sp == 0):
         raise ValueError(f"spacing must be finite and non-zero, got {tuple(image.GetSpacing())}")
-    w, h = int(size[0]), int(size[1])
-    if w < 1 or h < 1:
-        raise ValueError(f"size must be positive, got {size}")
+    w, h = _checks.image_size(size, _VOLUME_BYTES_PER_PIXEL)
+    diagonal = float(np.linalg.norm((np.array(dims) - 1) * sp))
+    if sample_distance is None:
+        sample_distance = 0.5 * sp.min()
+    sample_distance = _checks.real(sample_distance, "sample_distance", 0.0, lo_open=True, meaning="world units")
+    if diagonal / sample_distance > _checks.MAX_SAMPLES_PER_RAY:
+        raise ValueError(f"sample_distance {sample_distance!r} asks for {diagonal / sample_distance:.3g} samples "
+                         f"across the volume's diagonal ({diagonal:.6g}); at most 2^20 per ray are supported: "
+                         f"use sample_distance >= {diagonal / _checks.MAX_SAMPLES_PER_RAY:.3g}")
+    if opacity_unit_distance is None:
+        opacity_unit_distance = sp.mean()
+    opacity_unit_distance = _checks.real(opacity_unit_distance, "opacity_unit_distance", 0.0, lo_open=True,
+                                         meaning="world units")
+    image_sample_distance = _checks.real(image_sample_distance, "image_sample_distance", 1.0, 32.0)
+    early_termination = _checks.real(early_termination, "early_termination", 0.0, 1.0, meaning="opacity")
+    threads = _checks.threads(threads)
     if color is None or opacity is None:
         dc, do = default_transfer_functions(image)
         color = color if color is not None else dc
         opacity = opacity if opacity is not None else do
     cam = camera if camera is not None else frame_camera(image)
-    return image, w, h, color, opacity, cam, sp
+    _checks.camera(cam.GetPosition(), cam.GetFocalPoint(), cam.GetViewUp(),
+                   None if cam.GetParallelProjection() else cam.GetViewAngle())
+    return SimpleNamespace(image=image, width=w, height=h, color=color, opacity=opacity, camera=cam,
+                           sample_distance=sample_distance, opacity_unit_distance=opacity_unit_distance,
+                           image_sample_distance=image_sample_distance, early_termination=early_termination,
+                           threads=threads)
 
 
 def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=None, spacing=None, origin=None,
@@ -232,28 +265,32 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     volume : pyvista.ImageData, vtkImageData or numpy.ndarray
         One-component scalars of any numeric type; a 3-D array is indexed ``[x, y, z]``.
     size : tuple of int, default: (512, 512)
-        Image width and height.
+        Image width and height, each 1..16384; refused when the image arrays (about 64 bytes per
+        pixel) would not fit in the memory available.
     camera : vtkCamera or pyvista.Camera, optional
-        Default: :func:`frame_camera`.
+        Default: :func:`frame_camera`. Its position, focal point and view up must be finite, the
+        position away from the focal point and the view up not along the view direction.
     color, opacity : vtkColorTransferFunction, vtkPiecewiseFunction, optional
         Default: :func:`default_transfer_functions`.
     spacing, origin : sequence of 3 float, optional
         Only for a numpy volume. Default: 1 and 0.
     sample_distance : float, optional
-        World units between samples along a ray. Default: half the smallest spacing.
-        Halving it doubles the time and roughly halves the error.
+        World units between samples along a ray, > 0 and at least the volume's diagonal / 2^20
+        (at most 2^20 samples per ray). Default: half the smallest spacing. Halving it doubles
+        the time and roughly halves the error.
     image_sample_distance : float, default: 1.0
         Cast ``size / image_sample_distance`` rays per axis and interpolate: ~quadratic speed-up.
+        1..32.
     opacity_unit_distance : float, optional
-        Length over which ``opacity`` applies. Default: the mean spacing.
+        Length over which ``opacity`` applies, > 0. Default: the mean spacing.
     early_termination : float, default: 0.99
-        A ray stops once its opacity reaches this; ``1.0`` never stops early.
+        A ray stops once its opacity reaches this (0..1); ``1.0`` never stops early.
     double_precision : bool, default: False
         Interpolate and composite in double (differences ~1e-6 per channel).
     shade : bool, default: False
         Gradient shading with a headlight.
     threads : int, default: 0
-        OpenMP threads; 0 uses all.
+        OpenMP threads (0..4096); 0 uses all.
     backend : {"cpu", "opencl"}, default: "cpu"
         March the rays with the OpenMP engine or with OpenCL kernels. The volume is classified and
         stored the same way for both (every scalar type works on both); the OpenCL image equals
@@ -275,8 +312,9 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     Raises
     ------
     ValueError
-        Empty or multi-component volumes, fewer than 2 points along an axis, zero spacing,
-        scalars with no finite value, or an unknown ``backend``.
+        Empty or multi-component volumes, a scalar array whose length is not the number of
+        points, fewer than 2 points along an axis, zero spacing, scalars with no finite value, a
+        setting out of the range given above, a degenerate camera, or an unknown ``backend``.
     RuntimeError
         ``backend="opencl"`` with no OpenCL device (or none matching ``device``), or a build
         without OpenCL.
@@ -299,22 +337,25 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     True
     """
     check_backend(backend)
-    image, w, h, color, opacity, cam, sp = _prepare_volume_render(volume, size, camera, color, opacity, spacing,
-                                                                  origin)
+    v = _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
+                               opacity_unit_distance, image_sample_distance, early_termination, threads)
+    image, w, h, color, opacity, cam = v.image, v.width, v.height, v.color, v.opacity, v.camera
+    sample_distance, opacity_unit_distance = v.sample_distance, v.opacity_unit_distance
+    image_sample_distance, early_termination, threads = v.image_sample_distance, v.early_termination, v.threads
 
     caster = vtkMatrixTreeVolumeRayCaster()
     caster.SetInputData(image)
     caster.SetColorTransferFunction(color)
     caster.SetScalarOpacity(opacity)
-    caster.SetScalarOpacityUnitDistance(float(opacity_unit_distance or sp.mean()))
+    caster.SetScalarOpacityUnitDistance(opacity_unit_distance)
     caster.SetImageSize(w, h)
     caster.SetCamera(cam)
-    caster.SetSampleDistance(float(sample_distance or 0.5 * sp.min()))
-    caster.SetImageSampleDistance(float(image_sample_distance))
-    caster.SetEarlyTerminationThreshold(float(early_termination))
+    caster.SetSampleDistance(sample_distance)
+    caster.SetImageSampleDistance(image_sample_distance)
+    caster.SetEarlyTerminationThreshold(early_termination)
     caster.SetDoublePrecision(bool(double_precision))
     caster.SetShade(bool(shade))
-    caster.SetNumberOfThreads(int(threads))
+    caster.SetNumberOfThreads(threads)
     if backend == "opencl":
         caster.SetBackendToOpenCL()
         if device is not None:

@@ -166,11 +166,12 @@ TEST(CellSet, CachedBoundsAreTheTightestFloatsOutside) {
   ASSERT_FALSE(grid.floatPoints());
   expectTightestFloatBounds(grid, "brick_pyra");
   // Edge cases of the rounding: both signs, zeros, subnormals, values next to zero and next to
-  // a power of two, exact floats, one tetrahedron per coordinate value.
+  // a power of two, exact floats, the ends of the supported coordinate range (+-1e30,
+  // coordinate_range.h), one tetrahedron per coordinate value.
   const double tiny = std::numeric_limits<float>::denorm_min();
   const double values[] = {0.0, -0.0, 0.1, -0.1, 1.0, -1.0, 1.0 + 1e-12, -(1.0 + 1e-12), 1.0 - 1e-12,
                            -(1.0 - 1e-12), 0.5 * tiny, -0.5 * tiny, 1.5 * tiny, -1.5 * tiny, 1e-300, -1e-300,
-                           3e38, -3e38, 1e5 + 1e-7, -(1e5 + 1e-7)};
+                           1e30, -1e30, 1e5 + 1e-7, -(1e5 + 1e-7)};
   std::vector<double> pts;
   std::vector<uint32_t> off = {0}, conn;
   for (double v : values) {

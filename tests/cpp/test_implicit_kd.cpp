@@ -14,6 +14,7 @@
 // too-deep trees; bad block edges.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <limits>
@@ -236,6 +237,41 @@ TEST(ImplicitKd, SplitPolygonsAreTheNodesPlanesInTheirCells) {
   }
   EXPECT_EQ(lo, rb.lo[a1]);
   EXPECT_EQ(hi, rb.hi[a1]);
+}
+
+// Point location: a point of a triangle lies in a leaf that lists the triangle (the build's
+// conservative classification, split_tree.h), whatever side of a plane through it the walk takes;
+// outside the root box, or NaN, there is no leaf.
+TEST(ImplicitKd, LeafFindListsEveryTriangleThroughThePoint) {
+  const TriangleMesh mesh = mtest::loadRealMesh("scenes/utah_hand/hand_00.obj");
+  const SahKdTree sah(mesh);
+  ImplicitSplitTree tree;
+  tree.build(mtree::pointerTreeOf(sah), mesh);
+  mtest::Rng rng(0x1eaf);
+  uint64_t missing = 0, deepest = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const size_t t = rng.below(static_cast<uint32_t>(mesh.size()));
+    // Interior points, and the triangle's vertices (on many planes: triangle bounds are candidates).
+    const Vec3 p = i % 4 == 0 ? mesh.vertex(t, i % 3) : mtest::pointOn(mesh, t, rng);
+    int level, c[3];
+    const uint32_t w = tree.leafFind(p, level, c);
+    ASSERT_GE(level, 0);
+    EXPECT_EQ(w, tree.word(level, c[0], c[1], c[2]));
+    uint32_t count;
+    const uint32_t* ids = tree.leafPrims(w, count);
+    missing += std::find(ids, ids + count, static_cast<uint32_t>(t)) == ids + count;
+    deepest = std::max<uint64_t>(deepest, static_cast<uint64_t>(level));
+  }
+  EXPECT_EQ(missing, 0u);
+  EXPECT_GT(deepest, 10u);
+  int level, c[3];
+  const Box rb = tree.rootBox();
+  EXPECT_EQ(tree.leafFind(rb.hi + rb.extent(), level, c), ImplicitSplitTree::kEmpty);
+  EXPECT_EQ(level, -1);
+  EXPECT_EQ(tree.leafFind(Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0), level, c), ImplicitSplitTree::kEmpty);
+  EXPECT_EQ(level, -1);
+  EXPECT_EQ(ImplicitSplitTree().leafFind(rb.center(), level, c), ImplicitSplitTree::kEmpty);
+  EXPECT_EQ(level, -1);
 }
 
 TEST(ImplicitKd, UnencodablePlanesAreRoundedAndTrianglesRedistributed) {

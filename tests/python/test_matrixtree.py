@@ -255,3 +255,93 @@ def test_tree_mesh_boxes_cover_every_triangle():
         matrixtree.tree_mesh(bunny, levels=(3, 1))
     with pytest.raises(TypeError):
         matrixtree.tree_mesh(42)
+
+
+# ---------------------------------------------------------------------------------------------
+# The paper's other trees (§4: implicit general kd-tree, implicit BSP tree; §7: hybrid) through
+# the same classes. The BSP build is slow (seconds per 10^4 triangles): it runs on the hand.
+# ---------------------------------------------------------------------------------------------
+OTHER_TREES = [(BUNNY, "implicit-kd"), (BUNNY, "hybrid"), (HAND, "implicit-kd"), (HAND, "bsp"), (HAND, "hybrid")]
+
+
+@pytest.mark.parametrize("path, kind", OTHER_TREES)
+def test_other_trees_first_hits_equal_brute_force(path, kind):
+    test_first_hits_equal_brute_force(path, kind)
+
+
+@pytest.mark.parametrize("path, kind", OTHER_TREES)
+def test_other_trees_render_what_the_octree_renders(path, kind):
+    mesh = matrixtree.read_mesh(path)
+    ref = matrixtree.render(mesh, size=(96, 80), tree="octree")
+    img = matrixtree.render(mesh, size=(96, 80), tree=kind, counters=True)
+    assert _same_hits(img, ref) == 0
+    assert img["hits"] == ref["hits"] > 1000
+    assert np.sum(np.any(img["rgb"] != ref["rgb"], axis=2)) <= 3
+    assert img["node_visits_per_ray"] > 0 and img["triangle_tests_per_ray"] > 0
+    assert img["caster"].GetTree().GetTreeTypeAsString() == kind
+
+
+@pytest.mark.parametrize("kind", ["implicit-kd", "bsp", "hybrid"])
+def test_other_trees_stats_and_find_leaves(kind):
+    mesh = matrixtree.read_mesh(HAND)
+    tree = matrixtree.MatrixTree(mesh, tree=kind)
+    s = tree.stats()
+    assert s["tree"] == kind and s["triangles"] == 15855
+    assert s["nodes"] > s["leaves"] > 0 and s["references"] >= s["triangles"]
+    assert s["bytes"] > 4 * s["references"]
+    assert len(s["level_bytes"]) == s["height"] + 1 and sum(s["level_bytes"]) < s["bytes"]
+    if kind == "hybrid":
+        assert "pointer_tree_bytes" not in s
+        assert list(s["phases_ms"])[-1] == "leaf kd-trees"
+    else:
+        # the same tree with 8-byte pointer nodes and the same 4-byte triangle indices
+        assert s["pointer_tree_bytes"] >= 8 * s["nodes"] + 4 * s["triangles"]
+    # A point of a triangle lies in an existing leaf; a point outside the root box in none.
+    rng = np.random.default_rng(7)
+    tris = triangles(tree.mesh)
+    pick = tris[rng.integers(0, len(tris), 3000)]
+    uv = rng.random((3000, 2))
+    uv[uv.sum(axis=1) > 1] = 1 - uv[uv.sum(axis=1) > 1]
+    p = pick[:, 0] + uv[:, :1] * (pick[:, 1] - pick[:, 0]) + uv[:, 1:] * (pick[:, 2] - pick[:, 0])
+    res = tree.find_leaves(p)
+    assert (res[:, 4] == 1).all() and (res[:, 0] >= 0).all() and (res[:, 0] <= s["height"]).all()
+    root = np.array(s["root_bounds"]).reshape(3, 2)
+    assert tree.find_leaves(root[:, 1] + 1.0)[0, 0] == -1
+
+
+def test_other_trees_bad_settings():
+    mesh = matrixtree.read_mesh(HAND)
+    with pytest.raises(ValueError, match="no OpenCL walk"):
+        matrixtree.MatrixTree(mesh, tree="hybrid", backend="opencl")
+    with pytest.raises(ValueError, match="CPU only"):
+        matrixtree.render(mesh, tree="hybrid", backend="opencl")
+    with pytest.raises(ValueError, match="tree must be one of"):
+        matrixtree.render(mesh, tree="bvh")
+    with pytest.raises(ValueError, match="levels=-1"):
+        matrixtree.tree_mesh(mesh, tree="implicit-kd", levels=-1)
+
+
+def test_tree_mesh_draws_split_planes_in_their_cells():
+    mesh = matrixtree.read_mesh(HAND)
+    root = np.array(matrixtree.MatrixTree(mesh, tree="implicit-kd").stats()["root_bounds"]).reshape(3, 2)
+    pad = 1e-9 * np.linalg.norm(root[:, 1] - root[:, 0])
+    for kind, directions in (("implicit-kd", {0, 1, 2}), ("bsp", set(range(13)))):
+        planes = matrixtree.tree_mesh(mesh, tree=kind, levels=(0, 5))
+        level = np.asarray(planes.cell_data["level"])
+        assert set(level) == set(range(6)) and np.sum(level == 0) == 1  # one root plane
+        assert np.all(np.bincount(level) <= 2 ** np.arange(6))  # at most 2^l nodes at level l
+        d = set(int(v) for v in planes.cell_data["direction"])
+        assert d <= directions and len(d) > 1
+        pts = np.asarray(planes.points)
+        assert np.all((pts >= root[:, 0] - pad) & (pts <= root[:, 1] + pad))
+    bsp = matrixtree.tree_mesh(mesh, tree="bsp", levels=(0, 8))
+    assert np.any(np.asarray(bsp.cell_data["direction"]) > 2)  # planes off the axes
+    hybrid = matrixtree.tree_mesh(mesh, tree="hybrid")
+    h = int(hybrid.field_data["tree_height"][0])
+    boxes = np.asarray(hybrid.cell_data["direction"]) == -1
+    level = np.asarray(hybrid.cell_data["level"])
+    assert boxes.any() and (~boxes).any()
+    assert set(level[boxes]) == set(range(h + 1)) and np.all(level[~boxes] >= h)
+    leaves = matrixtree.tree_mesh(mesh, tree="hybrid", levels=-1)
+    assert set(leaves.cell_data["level"]) == {h} and set(leaves.cell_data["direction"]) == {-1}
+    assert leaves.n_cells == np.sum(boxes & (level == h))

@@ -16,6 +16,7 @@ from matrixtree import scenes
 from seeded import random_points
 
 BUNNY = os.path.join(scenes.data_dir(), "meshes", "bunny.ply")
+HAND = os.path.join(scenes.data_dir(), "scenes", "utah_hand", "hand_00.obj")
 
 
 def _opencl_platforms() -> tuple[int, str]:
@@ -93,6 +94,31 @@ def test_opencl_render_matches_cpu_render(bunny):
     # Same primary hits; shadow rays differ only in their parametrisation (see the ray caster).
     same = np.mean(np.all(a["rgb"] == b["rgb"], axis=2))
     assert same > 0.99, same
+
+
+@needs_device
+@pytest.mark.parametrize("path, kind", [(BUNNY, "implicit-kd"), (HAND, "bsp")])
+def test_opencl_split_tree_rays_equal_the_cpu_walk(path, kind):
+    # The split trees are built on the CPU; the device traces them with the stackless walk.
+    mesh = matrixtree.read_mesh(path)
+    cpu = matrixtree.MatrixTree(mesh, tree=kind)
+    dev = matrixtree.MatrixTree(mesh, tree=kind, backend="opencl")
+    for key in ("height", "leaves", "references", "nodes", "bytes", "pointer_tree_bytes"):
+        assert cpu.stats()[key] == dev.stats()[key], key
+    lo, hi = np.array(cpu.stats()["root_bounds"][0::2]), np.array(cpu.stats()["root_bounds"][1::2])
+    rng = np.random.default_rng(11)
+    targets = lo + rng.random((3000, 3)) * (hi - lo)
+    dirs = rng.normal(size=(3000, 3))
+    origins = 0.5 * (lo + hi) - 2.0 * np.linalg.norm(hi - lo) * dirs / np.linalg.norm(dirs, axis=1)[:, None]
+    tc, cc = cpu.intersect(origins, targets - origins)
+    tg, cg = dev.intersect(origins, targets - origins)
+    np.testing.assert_array_equal(cc, cg)
+    hit = np.isfinite(tc)
+    assert hit.sum() > 500
+    np.testing.assert_allclose(tg[hit], tc[hit], rtol=1e-6, atol=0)
+    a = matrixtree.render(mesh, size=(64, 48), tree=kind)
+    b = matrixtree.render(mesh, size=(64, 48), tree=kind, backend="opencl")
+    assert np.mean(np.all(a["rgb"] == b["rgb"], axis=2)) > 0.99
 
 
 # ----------------------------------------------------------------------------- volume rendering

@@ -3,7 +3,9 @@
 #include <omp.h>
 
 #include <cstring>
+#include <string>
 
+#include "mtree/core/coordinate_range.h"
 #include "mtree/core/parallel.h"
 
 namespace mtree {
@@ -51,6 +53,42 @@ const CellTopology* cellTopology(uint8_t type) {
     case kPyramid: return &pyramid;
     default: return nullptr;  // voxels and pixels are their bounding box; others are padded
   }
+}
+
+int cellTypeDimension(uint8_t type) {
+  switch (type) {
+    case 1:   // VTK_VERTEX
+    case 2:   // VTK_POLY_VERTEX
+      return 0;
+    case 3:   // VTK_LINE
+    case 4:   // VTK_POLY_LINE
+    case 21:  // VTK_QUADRATIC_EDGE
+    case 35:  // VTK_CUBIC_LINE
+    case 68:  // VTK_LAGRANGE_CURVE
+    case 75:  // VTK_BEZIER_CURVE
+      return 1;
+    case 5: case 6: case 7: case 8: case 9:  // triangle, strip, polygon, pixel, quad
+    case 22: case 23: case 28: case 30: case 34: case 36:  // the quadratic 2-D cells
+    case 69: case 70: case 76: case 77:  // Lagrange and Bézier triangles and quadrilaterals
+      return 2;
+    case 10: case 11: case 12: case 13: case 14: case 15: case 16:  // linear volumes and prisms
+    case 24: case 25: case 26: case 27: case 29: case 31: case 32: case 33: case 37:  // quadratic
+    case 41: case 42:  // convex point set, polyhedron
+    case 71: case 72: case 73: case 78: case 79: case 80:  // Lagrange, Bezier (no pyramids in 9.1)
+      return 3;
+    default: return -1;
+  }
+}
+
+const char* cellTypeName(uint8_t type) {
+  static const char* const names[] = {"VTK_EMPTY_CELL", "VTK_VERTEX", "VTK_POLY_VERTEX", "VTK_LINE",
+                                      "VTK_POLY_LINE", "VTK_TRIANGLE", "VTK_TRIANGLE_STRIP", "VTK_POLYGON",
+                                      "VTK_PIXEL", "VTK_QUAD", "VTK_TETRA", "VTK_VOXEL",
+                                      "VTK_HEXAHEDRON", "VTK_WEDGE", "VTK_PYRAMID"};
+  if (type <= kPyramid) return names[type];
+  static thread_local std::string other;
+  other = "cell type " + std::to_string(type);
+  return other.c_str();
 }
 
 std::vector<uint32_t> CellSet::narrow(const std::vector<int64_t>& v, const char* what) {
@@ -126,10 +164,10 @@ void CellSet::validateViewed(const I* off, const I* conn, size_t connSize) const
 }
 
 void CellSet::validate() const {
-  const size_t nc = 3 * pts_.n;
-  for (size_t i = 0; i < nc; ++i)
-    if (!std::isfinite(floatPoints_ ? double(pts_.fp[i]) : pts_.dp[i]))
-      throw std::invalid_argument("CellSet: point " + std::to_string(i / 3) + " has a non-finite coordinate");
+  if (floatPoints_)
+    checkCoordinateRange(pts_.fp, pts_.n, "CellSet");
+  else
+    checkCoordinateRange(pts_.dp, pts_.n, "CellSet");
 }
 
 void CellSet::dropUniformOffsets() {

@@ -312,6 +312,21 @@ std::vector<SplitPolygon> ImplicitSplitTree::splitPolygons(int maxLevel) const {
   return out;
 }
 
+uint32_t ImplicitSplitTree::leafFind(Vec3 p, int& level, int c[3]) const {
+  level = -1;
+  c[0] = c[1] = c[2] = 0;
+  if (levels_.empty() || !root_.contains(p)) return kEmpty;
+  level = 0;
+  uint32_t w = word(0, 0, 0, 0);
+  while (!isLeaf(w)) {
+    const int k = direction(w);
+    child(level, c, frame_.project(k, p) <= frame_.world(k, split(w)) ? 0 : 1);
+    ++level;
+    w = word(level, c[0], c[1], c[2]);
+  }
+  return w;
+}
+
 size_t ImplicitSplitTree::nodeBytes() const {
   size_t b = leafStart_.size() * sizeof(uint32_t);
   for (const auto& l : levels_) b += l.bytes();

@@ -229,11 +229,11 @@ inline void shadeSample(const Frame& F, const float cc[8], R fx, R fy, R fz, con
   acc.add(r, g, b, a);
 }
 
+/// TransferTable::index: clamped into [0, last] as a float, before the cast (a float past
+/// INT_MAX has no int); NaN goes to 0 (std::max(0, NaN) is 0).
 inline int tableIndex(const Frame& F, float v) {
   const float x = (v - F.tlo) * F.tscale + 0.5f;
-  if (!(x > 0.f)) return 0;
-  const int i = static_cast<int>(x);
-  return i < F.tlast ? i : F.tlast;
+  return static_cast<int>(std::min(std::max(0.f, x), float(F.tlast)));
 }
 
 /// The t where the index-space ray (o, d) leaves the box [lo, hi] (it is inside at some t).
@@ -523,7 +523,7 @@ inline bool apronClampedSampleAt(const Frame& F, const float p[4], const double 
   if (!F.vol->cellCorners(c[0], c[1], c[2], cc)) return false;
   ++samples;
   const float v = trilinear<float>(cc, float(f[0]), float(f[1]), float(f[2]));  // offset is in cc
-  const float* e = F.table + 4 * std::min(std::max(static_cast<int>((v - F.tlo) * F.tscale + 0.5f), 0), F.tlast);
+  const float* e = F.table + 4 * tableIndex(F, v);
   if constexpr (Shade) {
     if (e[3] > 0.f) shadeSample<float>(F, cc, float(f[0]), float(f[1]), float(f[2]), e, viewDir, acc);
   } else {
@@ -554,7 +554,7 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
   const ApronRay ray(F, o, d, t0);
   const __m128 zero = _mm_setzero_ps();
   const __m128 tlo = _mm_set_ss(F.tlo), tscale = _mm_set_ss(F.tscale), half = _mm_set_ss(0.5f);
-  const int tlast = F.tlast;
+  const __m128 tlast = _mm_set_ss(float(F.tlast));
   const float* const table = F.table;
   const float offset = F.offset;
   int64_t k = 0;
@@ -588,9 +588,10 @@ void marchApron(const Frame& F, ApronFetch<T> fetch, const double o[3], const do
       const __m128 x1 = _mm_shuffle_ps(yl, yl, 0x55);
       const __m128 v = _mm_add_ss(_mm_add_ss(yl, _mm_mul_ss(f, _mm_sub_ss(x1, yl))), _mm_set_ss(offset));
       ++samples;
-      // TransferTable::index, branch-free: truncation, then clamped into [0, last].
-      const int raw = _mm_cvttss_si32(_mm_add_ss(_mm_mul_ss(_mm_sub_ss(v, tlo), tscale), half));
-      const int idx = std::min(std::max(raw, 0), tlast);
+      // TransferTable::index, branch-free: clamped into [0, last] as a float (NaN to 0: maxss
+      // returns its second operand then), then truncated; a float past INT_MAX has no int.
+      const __m128 x = _mm_add_ss(_mm_mul_ss(_mm_sub_ss(v, tlo), tscale), half);
+      const int idx = _mm_cvttss_si32(_mm_min_ss(_mm_max_ss(x, zero), tlast));
       const float* e = table + 4 * idx;
       if (Shade) {
         if (!(e[3] > 0.f)) continue;

@@ -110,7 +110,7 @@ template <typename T>
 __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R, float kf, int64_t left,
                                                               Avx2Chunk& out) {
   static_assert(BlockSparseVolume::APRON == 9 && DIM == 8, "the offsets below assume 9^3-voxel bricks of 8^3 cells");
-  const __m256i zeroi = _mm256_setzero_si256(), seven = _mm256_set1_epi32(DIM - 1);
+  const __m256i seven = _mm256_set1_epi32(DIM - 1);
   const __m256 P0x = _mm256_set1_ps(R.P0x), P0y = _mm256_set1_ps(R.P0y), P0z = _mm256_set1_ps(R.P0z);
   const __m256 Sx = _mm256_set1_ps(R.Sx), Sy = _mm256_set1_ps(R.Sy), Sz = _mm256_set1_ps(R.Sz);
   const __m256i mx = _mm256_set1_epi32(R.mx), my = _mm256_set1_epi32(R.my), mz = _mm256_set1_epi32(R.mz);
@@ -161,12 +161,16 @@ __attribute__((always_inline)) inline void avx2Chunk(const Avx2Ray<T>& R, float 
   const __m256 y0 = _mm256_add_ps(z0, _mm256_mul_ps(fy, _mm256_sub_ps(z2, z0)));
   const __m256 y1 = _mm256_add_ps(z1, _mm256_mul_ps(fy, _mm256_sub_ps(z3, z1)));
   const __m256 v = _mm256_add_ps(_mm256_add_ps(y0, _mm256_mul_ps(fx, _mm256_sub_ps(y1, y0))), _mm256_set1_ps(R.offset));
-  const __m256i raw = _mm256_cvttps_epi32(
-      _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, _mm256_set1_ps(R.tlo)), _mm256_set1_ps(R.tscale)), _mm256_set1_ps(0.5f)));
+  // TransferTable::index: clamped into [0, last] as floats (NaN to 0: maxps returns its second
+  // operand then), then truncated; a float past INT_MAX has no int.
+  const __m256 x =
+      _mm256_add_ps(_mm256_mul_ps(_mm256_sub_ps(v, _mm256_set1_ps(R.tlo)), _mm256_set1_ps(R.tscale)), _mm256_set1_ps(0.5f));
+  const __m256i raw =
+      _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(x, _mm256_setzero_ps()), _mm256_set1_ps(float(R.tlast))));
   // Entry offsets into Frame::table8 (8 floats an entry); an invisible cell reads the all-zero
   // entry renderVolume appends to the table (1 - 0 = 1 in its second half): C + T * 0 = C and
   // T * 1 = T exactly, as when marchApron skips the cell.
-  const __m256i e4 = _mm256_slli_epi32(_mm256_min_epi32(_mm256_max_epi32(raw, zeroi), _mm256_set1_epi32(R.tlast)), 3);
+  const __m256i e4 = _mm256_slli_epi32(raw, 3);
   const __m256 zeroEntry = _mm256_castsi256_ps(_mm256_set1_epi32(R.zeroEntry));
   out.idx = _mm256_castps_si256(_mm256_blendv_ps(zeroEntry, _mm256_castsi256_ps(e4), vbit));
 }

@@ -58,6 +58,13 @@ struct CellTopology {
 };
 const CellTopology* cellTopology(uint8_t type);  // nullptr: no table (bounding box is used)
 
+/// The dimension of a VTK cell type: 0 (vertices) to 3 (volumes), for every type a VTK 9.1 data
+/// set can hold (vtkGenericCell instantiates it: linear, quadratic, Lagrange, Bezier, convex
+/// point sets, polyhedra); -1 for the empty cell and other codes.
+int cellTypeDimension(uint8_t type);
+/// VTK's name of a linear cell type ("VTK_TETRA"), else "cell type N".
+const char* cellTypeName(uint8_t type);
+
 /// Which separating axes the exact overlap test uses. Faces: the box normals (implicit in the
 /// candidate range) and the cell's face normals — conservative (it may keep a leaf that only
 /// an edge-cross axis would separate), about 5x cheaper for tetrahedra. All: also the cross
@@ -89,7 +96,7 @@ class CellSet {
   CellSet() = default;
   /// points: 3 doubles per point; offsets: numCells + 1 entries into connectivity; types: one
   /// VTK cell type per cell. Throws std::invalid_argument on inconsistent arrays, an index out of
-  /// range, or a non-finite coordinate, and std::length_error past 2^32 - 1 connectivity
+  /// range, or a coordinate out of checkCoordinateRange's range, and std::length_error past 2^32 - 1 connectivity
   /// entries or points (indices are stored in 32 bits). threads: OpenMP threads for the cached
   /// bounds (0 = OpenMP's default).
   CellSet(std::vector<double> points, std::vector<uint32_t> offsets, std::vector<uint32_t> connectivity,

@@ -173,9 +173,11 @@ struct HasTotalBounds<P, std::void_t<decltype(std::declval<const P&>().totalBoun
 /// f(x, y, z) for each set bit b of `mask`, ascending, where b numbers the candidates of the box
 /// [lo, lo + (w0, w1, *)) x fastest, then y, then z (w0 x w1 x w2 <= 64). The quotients by w0
 /// and w1 are (b * ceil(2^16 / w)) >> 16, exact for b < 64 and w <= 64 (the error stays below
-/// 64 / 2^16 < 1 / w).
+/// 64 / 2^16 < 1 / w). An empty mask (a primitive with an empty box, e.g. a cell without points,
+/// whose candidate range is empty: w0 or w1 may then be 0) visits nothing.
 template <class F>
 inline void forEachBit(uint64_t mask, const int lo[3], int w0, int w1, F&& f) {
+  if (!mask) return;
   const uint32_t m0 = (65536u + uint32_t(w0) - 1) / uint32_t(w0), m1 = (65536u + uint32_t(w1) - 1) / uint32_t(w1);
   while (mask) {
     const uint32_t b = static_cast<uint32_t>(__builtin_ctzll(mask));
@@ -255,10 +257,17 @@ int autoHeight(const Prims& prims, const BuildOptions& opt, const Box& root, dou
   sizes.reserve(static_cast<size_t>(n / stride + 1));
   sample.reserve(sizes.capacity());
   for (int64_t i = 0; i < n; i += stride) {
-    sample.push_back(prims.bounds(static_cast<size_t>(i)));
-    const Vec3 e = sample.back().extent();
+    // Primitives with an empty box (cells without points, VTK_EMPTY_CELL) have neither an extent
+    // nor candidate leaves: they stay out of the sample (their -inf extents and negative
+    // candidate counts would send the height to its maximum, and the other cells over 10^8 leaves).
+    const Box b = prims.bounds(static_cast<size_t>(i));
+    if (b.empty()) continue;
+    sample.push_back(b);
+    const Vec3 e = b.extent();
     sizes.push_back(std::max(e.x, std::max(e.y, e.z)));
   }
+  median = 0;
+  if (sizes.empty()) return 0;
   std::nth_element(sizes.begin(), sizes.begin() + sizes.size() / 2, sizes.end());
   double med = sizes[sizes.size() / 2];
   if (!(med > 0)) med = std::max(ext.x, std::max(ext.y, ext.z)) * 1e-3;  // degenerate primitives

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "mtree/core/coordinate_range.h"
 #include "mtree/core/geometry.h"
 
 namespace mtree {
@@ -20,16 +21,14 @@ class TriangleMesh {
  public:
   TriangleMesh() = default;
   /// points: 3 doubles per vertex; triangles: 3 vertex indices per triangle.
-  /// Throws std::invalid_argument naming the first bad index or non-finite coordinate.
+  /// Throws std::invalid_argument naming the first bad index or a coordinate out of
+  /// checkCoordinateRange's range.
   TriangleMesh(std::vector<double> points, std::vector<uint32_t> triangles)
       : pts_(std::move(points)), tris_(std::move(triangles)) {
     if (pts_.size() % 3 || tris_.size() % 3)
       throw std::invalid_argument("TriangleMesh: points and triangles must come in triples");
     const size_t nv = pts_.size() / 3;
-    for (size_t i = 0; i < pts_.size(); ++i)
-      if (!std::isfinite(pts_[i]))
-        throw std::invalid_argument("TriangleMesh: point " + std::to_string(i / 3) +
-                                    " has a non-finite coordinate (NaN or inf)");
+    checkCoordinateRange(pts_.data(), nv, "TriangleMesh");
     for (size_t i = 0; i < tris_.size(); ++i)
       if (tris_[i] >= nv)
         throw std::invalid_argument("TriangleMesh: triangle " + std::to_string(i / 3) +
@@ -71,8 +70,7 @@ class TriangleMesh {
   void setPoints(std::vector<double> points) {
     if (points.size() != pts_.size())
       throw std::invalid_argument("TriangleMesh::setPoints: point count differs from the mesh");
-    for (double v : points)
-      if (!std::isfinite(v)) throw std::invalid_argument("TriangleMesh::setPoints: non-finite coordinate");
+    checkCoordinateRange(points.data(), points.size() / 3, "TriangleMesh::setPoints");
     pts_ = std::move(points);
   }
 

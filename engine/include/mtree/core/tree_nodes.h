@@ -7,32 +7,9 @@
 #include <vector>
 
 #include "mtree/core/matrix_tree.h"
+#include "mtree/core/tree_queries.h"  // forEachChild
 
 namespace mtree {
-
-/// Calls f(cc) for every existing child cc of node c of level l < height (the next level
-/// splits each axis a into 2^(logDim(l + 1, a) - logDim(l, a)) parts).
-template <class F>
-void forEachChild(const MatrixTree& t, int l, const int c[3], F&& f) {
-  int s[3];
-  for (int a = 0; a < 3; ++a) s[a] = t.logDim(l + 1, a) - t.logDim(l, a);
-  for (int dz = 0; dz < (1 << s[2]); ++dz)
-    for (int dy = 0; dy < (1 << s[1]); ++dy)
-      for (int dx = 0; dx < (1 << s[0]); ++dx) {
-        const int cc[3] = {(c[0] << s[0]) + dx, (c[1] << s[1]) + dy, (c[2] << s[2]) + dz};
-        if (t.nodeExists(l + 1, cc)) f(cc);
-      }
-}
-
-/// Squared distance from x to the box (0 inside).
-inline double boxDistance2(Vec3 x, const Box& b) {
-  double d2 = 0;
-  for (int a = 0; a < 3; ++a) {
-    const double d = std::max({b.lo[a] - x[a], 0.0, x[a] - b.hi[a]});
-    d2 += d * d;
-  }
-  return d2;
-}
 
 struct TreeNodeInfo {
   int level = 0;

@@ -238,34 +238,50 @@ class SahKdTree {
   SahBuildStats stats_;
 };
 
+/// The ray o + t d, t in [tmin, tmax], clipped to the closed box `root` by its slabs and widened
+/// by a relative SahKdTree::kTPad at both ends (see Robustness): [t0, t1]. False, with nothing
+/// to walk, for a ray that misses the box, a NaN or infinite component, a zero direction or
+/// tmin > tmax (or NaN). An axis along which the ray does not move (1 / d overflows) keeps the
+/// interval when o lies within the box's slab. The set-up of every tree clipped to its root box
+/// by SahKdTree's rules (SahKdTree, ImplicitSplitTree).
+inline bool clipRayToRoot(const Box& root, Vec3 o, Vec3 d, double tmin, double tmax, double& t0, double& t1);
+
 // ---------------------------------------------------------------------------------------------
 // Implementation of the traversals (templates: the visitor's leaf loop inlines).
 // ---------------------------------------------------------------------------------------------
 
-MT_ALWAYS_INLINE bool SahKdTree::setup(Vec3 o, Vec3 d, double tmin, double tmax, RayCtx& r) const {
-  if (nodes_.empty() || !isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return false;
+MT_ALWAYS_INLINE bool clipRayToRoot(const Box& root, Vec3 o, Vec3 d, double tmin, double tmax, double& t0, double& t1) {
+  if (!isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return false;
   if (d.x == 0 && d.y == 0 && d.z == 0) return false;
-  double t0 = tmin, t1 = tmax;
+  double lo = tmin, hi = tmax;
+  for (int a = 0; a < 3; ++a) {
+    const double inv = 1.0 / d[a];
+    if (!(std::fabs(inv) < std::numeric_limits<double>::infinity())) {  // no motion along a
+      if (o[a] < root.lo[a] || o[a] > root.hi[a]) return false;
+      continue;
+    }
+    double tn = (root.lo[a] - o[a]) * inv, tf = (root.hi[a] - o[a]) * inv;
+    if (tn > tf) std::swap(tn, tf);
+    if (tn > lo) lo = tn;
+    if (tf < hi) hi = tf;
+  }
+  // Widened by kTPad (relative) so that round-off between a plane's t and a hit's t (a ray aimed at
+  // a vertex on a plane, a shadow ray ending exactly at a hit) cannot hide a leaf the ray touches.
+  t0 = lo - SahKdTree::kTPad * std::fabs(lo);
+  t1 = hi + SahKdTree::kTPad * std::fabs(hi);
+  return t0 <= t1;
+}
+
+MT_ALWAYS_INLINE bool SahKdTree::setup(Vec3 o, Vec3 d, double tmin, double tmax, RayCtx& r) const {
+  if (nodes_.empty() || !clipRayToRoot(root_, o, d, tmin, tmax, r.t0, r.t1)) return false;
   for (int a = 0; a < 3; ++a) {
     r.o[a] = o[a];
     const double inv = 1.0 / d[a];
     r.par[a] = !(std::fabs(inv) < std::numeric_limits<double>::infinity());
     r.inv[a] = r.par[a] ? 0.0 : inv;
     r.neg[a] = d[a] < 0 ? 1u : 0u;
-    if (r.par[a]) {
-      if (o[a] < root_.lo[a] || o[a] > root_.hi[a]) return false;
-      continue;
-    }
-    double tn = (root_.lo[a] - o[a]) * inv, tf = (root_.hi[a] - o[a]) * inv;
-    if (tn > tf) std::swap(tn, tf);
-    if (tn > t0) t0 = tn;
-    if (tf < t1) t1 = tf;
   }
-  // Widened by kTPad (relative) so that round-off between a plane's t and a hit's t (a ray aimed at
-  // a vertex on a plane, a shadow ray ending exactly at a hit) cannot hide a leaf the ray touches.
-  r.t0 = t0 - kTPad * std::fabs(t0);
-  r.t1 = t1 + kTPad * std::fabs(t1);
-  return r.t0 <= r.t1;
+  return true;
 }
 
 // The descent decision shared by the three walks, at inner node `nd` with the ray's interval

@@ -91,7 +91,7 @@ class ImplicitSplitTree {
   /// stay below 2^32.
   static constexpr int kMaxLevel = 46;
   /// Relative widening of the ray's interval and of the termination test (SahKdTree::kTPad).
-  static constexpr double kTPad = 0x1p-30;
+  static constexpr double kTPad = SahKdTree::kTPad;
   static double before(double t) { return t - kTPad * std::fabs(t); }
 
   /// log2 of the level's matrix size along `axis` (level l has doubled axis a at levels a, a+3, ...).
@@ -129,6 +129,12 @@ class ImplicitSplitTree {
   size_t bytes() const { return nodeBytes() + prims_.size() * sizeof(uint32_t); }
   /// Per level: nodes, block shape, pointer cells, blocks, bytes (the layout built).
   ImplicitLayoutCost levelCosts() const { return cost_; }
+
+  /// The leaf holding point p: down from the root to the child on p's side of each plane (the
+  /// left child for p on the plane, the side SahKdTree's walk takes for a ray lying in it). Returns
+  /// the leaf's word (kEmpty for an empty leaf), its level and position; level -1 and kEmpty for a
+  /// point outside the root box (or with a NaN coordinate) and for an empty tree.
+  uint32_t leafFind(Vec3 p, int& level, int c[3]) const;
 
   /// The split planes of the inner nodes of levels [0, maxLevel] within their cells (the root
   /// box cut by the planes above), found by descending from the root through derived children.
@@ -266,8 +272,8 @@ struct ImplicitTreeTracer {
 // ---------------------------------------------------------------------------------------------
 
 inline bool ImplicitSplitTree::setup(Vec3 o, Vec3 d, double tmin, double tmax, Ray& r) const {
-  if (levels_.empty() || !isFinite(o) || !isFinite(d) || !(tmin <= tmax)) return false;
-  if (d.x == 0 && d.y == 0 && d.z == 0) return false;
+  // The root box's slabs as SahKdTree::setup clips them (kTPad is SahKdTree's).
+  if (levels_.empty() || !clipRayToRoot(root_, o, d, tmin, tmax, r.t0, r.t1)) return false;
   for (int k = 0; k < frame_.count; ++k) {
     r.o[k] = frame_.project(k, o);
     const double inv = 1.0 / frame_.project(k, d);
@@ -275,22 +281,7 @@ inline bool ImplicitSplitTree::setup(Vec3 o, Vec3 d, double tmin, double tmax, R
     r.inv[k] = r.par[k] ? 0.0 : inv;
     r.neg[k] = inv < 0 ? 1u : 0u;
   }
-  // The root box's slabs, as SahKdTree::setup clips them.
-  double t0 = tmin, t1 = tmax;
-  for (int a = 0; a < 3; ++a) {
-    const double inv = 1.0 / d[a];
-    if (!(std::fabs(inv) < std::numeric_limits<double>::infinity())) {
-      if (o[a] < root_.lo[a] || o[a] > root_.hi[a]) return false;
-      continue;
-    }
-    double tn = (root_.lo[a] - o[a]) * inv, tf = (root_.hi[a] - o[a]) * inv;
-    if (tn > tf) std::swap(tn, tf);
-    if (tn > t0) t0 = tn;
-    if (tf < t1) t1 = tf;
-  }
-  r.t0 = t0 - kTPad * std::fabs(t0);
-  r.t1 = t1 + kTPad * std::fabs(t1);
-  return r.t0 <= r.t1;
+  return true;
 }
 
 template <class OnSplit>

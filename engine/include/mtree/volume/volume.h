@@ -75,8 +75,8 @@ class TransferTable {
   int index(float v) const {
     const float x = (v - flo_) * fscale_ + 0.5f;
     if (!(x > 0.f)) return 0;  // also catches NaN
-    const int i = static_cast<int>(x);
-    return i < last_ ? i : last_;
+    if (!(x < float(last_))) return last_;  // before the cast: a float past INT_MAX has no int
+    return static_cast<int>(x);
   }
   int index(double v) const { return index(static_cast<float>(v)); }
   /// The three numbers index() uses, for copying into an inner loop.
