@@ -258,7 +258,8 @@ def probe(mesh, points, *, pass_cell_data: bool = True, pass_point_data: bool = 
     Parameters
     ----------
     mesh : pyvista.DataSet or vtkDataSet
-        The source: any cells (VTK module: every cell type; engine extension: linear cells).
+        The source: any cells (VTK module: every cell type; engine extension: the linear cells and
+        the quadratic tetra, hexahedron, wedge, pyramid and triquadratic hexahedron).
     points : pyvista.DataSet or array_like, shape (n, 3)
         Where to sample; an array becomes a point cloud (``pyvista.PolyData``).
     pass_cell_data, pass_point_data : bool, default: True
@@ -298,7 +299,7 @@ def sample(mesh, target, *, pass_cell_data: bool = True, pass_point_data: bool =
     mesh : pyvista.DataSet
         Where to sample: the result has its geometry.
     target : pyvista.DataSet or vtkDataSet
-        The source of the data (VTK module: every cell type; engine extension: linear cells).
+        The source of the data (VTK module: every cell type; engine extension: as :func:`probe`).
     pass_cell_data, pass_point_data, pass_field_data : bool, default: True
         Keep ``mesh``'s own cell, point and field arrays.
     locator : matrixtree.CellLocator, optional
