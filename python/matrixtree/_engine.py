@@ -24,7 +24,7 @@ import time
 import numpy as np
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
-from matrixtree import _meshstate
+from matrixtree import _checks, _meshstate
 from matrixtree._cellarrays import cell_arrays, points_of, surface_arrays
 from matrixtree._backend import engine
 from matrixtree._util import RAY_TREES, bounds6, check_backend, points3, segments, tree_type
@@ -98,23 +98,26 @@ class CellLocator(_meshstate.RebuildOnChange):
         if not isinstance(dataset, vtkDataSet):
             raise TypeError(f"dataset must be a vtkDataSet (or a pyvista mesh), got {type(dataset).__name__}")
         self._tree = _TREE_NAMES[tree_type(tree)]
+        self._height = _checks.integer(height, "height", 0, 63, "0 = automatic")
+        self._threads = _checks.threads(threads)
         if check_backend(backend) == "opencl":
             raise _no_opencl("CellLocator")
         if dataset.GetNumberOfCells() == 0:
             raise ValueError("dataset has no cells")
         self.dataset = dataset
         self.backend = backend
-        self._height, self._threads = int(height), int(threads)
         self.builds = 0
         self._build()
 
     def _build_tree(self) -> None:
+        # As the VTK module's locator: a failed build is a RuntimeError with the engine's reason; a
+        # cell type the engine's cell mirror lacks is named, with the VTK module that takes it.
         try:
             self._loc = engine().CellLocator(*cell_arrays(self.dataset), tree=self._tree, height=self._height,
                                              threads=self._threads)
         except ValueError as e:
-            raise ValueError(f"{e} (the engine extension that `pip install .` builds evaluates VTK's linear "
-                             "cells; the VTK module of scripts/setup.sh takes every cell type)") from None
+            hint = " (the VTK module of scripts/setup.sh takes every cell type)" if "cell type" in str(e) else ""
+            raise RuntimeError(f"{e}{hint}") from None
 
     def locate(self, points, *, return_pcoords: bool = False, return_weights: bool = False):
         p = points3(points, "points")
@@ -125,8 +128,9 @@ class CellLocator(_meshstate.RebuildOnChange):
 
     def trace(self, origins, directions=None, *, ends=None, length: float = 1.0, tolerance: float = 0.0):
         o, e = segments(origins, directions, ends, length)
+        tolerance = _checks.real(tolerance, "tolerance", 0.0)
         self._sync()
-        return self._loc.first_hits(o, e, float(tolerance))
+        return self._loc.first_hits(o, e, tolerance)
 
     def trace_all(self, origins, directions=None, *, ends=None, length: float = 1.0):
         o, e = segments(origins, directions, ends, length)
@@ -145,8 +149,9 @@ class CellLocator(_meshstate.RebuildOnChange):
 
     def cells_along_line(self, pointa, pointb, tolerance: float = 0.0) -> np.ndarray:
         a, b = points3(pointa, "pointa")[0], points3(pointb, "pointb")[0]
+        tolerance = _checks.real(tolerance, "tolerance", 0.0)
         self._sync()
-        return self._loc.cells_along_segment(a.tolist(), b.tolist(), float(tolerance))
+        return self._loc.cells_along_segment(a.tolist(), b.tolist(), tolerance)
 
     def __repr__(self) -> str:
         st = self._loc.stats()
@@ -231,12 +236,11 @@ class MatrixTree:
         return self._tree.find_leaves(p)
 
     def intersect(self, origins, directions, t_max: float = np.inf):
-        o = points3(origins, "origins")
-        d = points3(directions, "directions")
-        if o.shape != d.shape:
-            raise ValueError(f"origins {o.shape} and directions {d.shape} must have the same shape")
+        from matrixtree.core import _rays
+
+        o, d, t_max = _rays(origins, directions, t_max)
         self._sync()
-        t, cells, visits, tests = self._tree.intersect(o, d, float(t_max))
+        t, cells, visits, tests = self._tree.intersect(o, d, t_max)
         self._counters = {"node_visits": int(visits), "triangle_tests": int(tests)}
         return t, cells
 

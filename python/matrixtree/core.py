@@ -126,6 +126,19 @@ def _check_tree_settings(tree, height, block_size, leaf_scale, threads):
     return tree_id, height, leaf_scale, _checks.threads(threads)
 
 
+def _rays(origins, directions, t_max):
+    """:meth:`MatrixTree.intersect`'s rays as two (N, 3) arrays and ``t_max`` as a float; ValueError
+    for other shapes or a ``t_max`` that is negative or NaN."""
+    o = points3(origins, "origins")
+    d = points3(directions, "directions")
+    if o.shape != d.shape:
+        raise ValueError(f"origins {o.shape} and directions {d.shape} must have the same shape")
+    t_max = float(t_max)
+    if not t_max >= 0:
+        raise ValueError(f"t_max must be >= 0 (inf allowed), got {t_max!r}")
+    return o, d, t_max
+
+
 def _as_polydata(mesh) -> vtkPolyData:
     if isinstance(mesh, vtkPolyData):
         return mesh
@@ -329,13 +342,7 @@ class MatrixTree:
         cell : numpy.ndarray, shape (N,)
             Hit cell id of the mesh; -1 where the ray misses.
         """
-        o = points3(origins, "origins")
-        d = points3(directions, "directions")
-        if o.shape != d.shape:
-            raise ValueError(f"origins {o.shape} and directions {d.shape} must have the same shape")
-        t_max = float(t_max)
-        if not t_max >= 0:
-            raise ValueError(f"t_max must be >= 0 (inf allowed), got {t_max!r}")
+        o, d, t_max = _rays(origins, directions, t_max)
         t = vtkDoubleArray()
         c = vtkIdTypeArray()
         self._query("IntersectRays", numpy_to_vtk(o, deep=False), numpy_to_vtk(d, deep=False), t_max, t, c)

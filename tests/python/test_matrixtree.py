@@ -9,6 +9,8 @@ import pytest
 import matrixtree
 from matrixtree import scenes
 
+from extensions import needs_vtk_module
+
 DATA = scenes.data_dir()
 BUNNY = os.path.join(DATA, "meshes", "bunny.ply")
 HAND = os.path.join(DATA, "scenes", "utah_hand", "hand_00.obj")
@@ -263,8 +265,6 @@ def test_tree_mesh_boxes_cover_every_triangle():
 # ---------------------------------------------------------------------------------------------
 OTHER_TREES = [(BUNNY, "implicit-kd"), (BUNNY, "hybrid"), (HAND, "implicit-kd"), (HAND, "bsp"), (HAND, "hybrid")]
 # The engine extension (pip's VTK) builds the matrix trees only; it names the VTK module for these.
-needs_vtk_module = pytest.mark.skipif(matrixtree.EXTENSION != "matrixtree_vtk",
-                                      reason="the split-plane and hybrid trees need the VTK module")
 
 
 @needs_vtk_module

@@ -14,6 +14,7 @@ from vtkmodules.vtkFiltersGeneral import vtkDataSetTriangleFilter
 from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
 
 import matrixtree
+from extensions import needs_vtk_module
 from isolated import outcome
 
 
@@ -146,6 +147,7 @@ def test_sample_distance_out_of_range_is_refused_not_a_hang(sd, message):
     assert got == "ValueError " + message, got
 
 
+@needs_vtk_module
 def test_vtk_volume_caster_refuses_zero_sample_distance_at_once():
     """The VTK class keeps the value it is given (no clamp to 1e-9) and its RequestData refuses it."""
     from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
@@ -182,6 +184,7 @@ def test_volume_with_fewer_scalars_than_points_is_refused(n):
         matrixtree.render_volume(short_scalars_image(n, 10), size=(8, 8))
 
 
+@needs_vtk_module
 def test_vtk_volume_caster_refuses_fewer_scalars_than_points():
     assert outcome("""
         import numpy as np
@@ -208,6 +211,7 @@ def test_cell_locator_build_failure_is_raised_by_the_constructor():
         matrixtree.CellLocator(g)
 
 
+@needs_vtk_module
 def test_every_query_of_a_failed_locator_raises_the_build_error():
     """A locator whose rebuild fails (here: a height whose leaf level needs 2^68 bytes) raises
     that reason from every query, trace and closest_points included (never empty arrays)."""
@@ -222,6 +226,7 @@ def test_every_query_of_a_failed_locator_raises_the_build_error():
         loc.closest_points([[0.5, 0.5, 0.5]] * 3)
 
 
+@needs_vtk_module
 def test_every_query_of_a_failed_matrix_tree_raises_the_build_error():
     with pytest.raises(RuntimeError, match=r"height 25 needs a 2\^68-byte pointer matrix.*lower the height"):
         matrixtree.MatrixTree(sphere(), height=25)
