@@ -8,11 +8,15 @@ then prints a table like the paper's Table 1 (build and render ms per frame, nod
 triangle tests per ray) and writes the first frame's pictures and heat maps and the table into
 the output folder (``out/`` by default).
 
-``render FILE``        the same comparison on one mesh file of yours (one frame).
+``render FILE``        the same comparison on one mesh file of yours (one frame), or on the
+                       boundary surface of a volume grid file (``--zone`` picks an SU2 zone).
 ``frames FOLDER``      a folder of meshes with the same connectivity, one frame per file.
 ``locate GRID POINTS`` locate the points of a file (``.npy``, ``.csv``/``.txt`` with x y z per
                        line, or any mesh/grid file's points) in an unstructured grid (``.vtu``,
-                       ``.vtk``, Exodus, SU2...); writes the cell ids (and weights) as ``.npy``.
+                       ``.vtk``, Exodus, SU2...); writes the cell ids (and weights) as ``.npy``,
+                       refusing to overwrite existing results unless ``--force``.
+
+``python -m matrixtree SUBCOMMAND --help`` lists each subcommand's arguments.
 """
 
 from __future__ import annotations
@@ -93,7 +97,7 @@ def _read_points(path: str) -> np.ndarray:
     else:
         from vtkmodules.util.numpy_support import vtk_to_numpy
 
-        ds = matrixtree.read_grid(path) if ext not in (".ply", ".obj", ".stl", ".vtp") else matrixtree.read_mesh(path)
+        ds = matrixtree.read_grid(path) if ext not in (".ply", ".obj", ".off", ".stl", ".vtp") else matrixtree.read_mesh(path)
         pts = vtk_to_numpy(ds.GetPoints().GetData())
     pts = np.asarray(pts, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] < 3:
@@ -101,21 +105,64 @@ def _read_points(path: str) -> np.ndarray:
     return pts[:, :3]
 
 
-def main(argv=None) -> int:
+_HELP = {
+    "demo": "the generated animated scene (the default: no arguments, no downloads)",
+    "render": "the comparison on one mesh file (.ply .obj .off .stl .vtp .vtk) or the boundary surface "
+              "of a volume grid file (.vtu .su2 .ex2 ...)",
+    "frames": "a folder of meshes with the same connectivity, one frame per file",
+    "locate": "locate the points of a file in an unstructured grid; writes the cell ids and weights (.npy)",
+}
+_GRID_EXTENSIONS = (".vtu", ".su2", ".ex2", ".exo", ".e", ".msh", ".inp", ".mesh")
+
+
+def _parser() -> argparse.ArgumentParser:
+    """The parser: every option may stand before or after the subcommand (an option after it
+    wins), each subcommand has its own ``--help``."""
+    def options(q, top: bool):
+        d = (lambda v: v) if top else (lambda v: argparse.SUPPRESS)
+        q.add_argument("--out", default=d("out"), help="output folder (default: out)")
+        q.add_argument("--size", nargs=2, type=int, default=d([800, 800]), metavar=("W", "H"),
+                       help="render size in pixels (default 800 800)")
+        q.add_argument("--threads", type=int, default=d(0), help="OpenMP threads, 0 = all (default)")
+        q.add_argument("--methods", default=d(",".join(METHODS)),
+                       help=f"comma-separated subset of {','.join(METHODS)}")
+        q.add_argument("--frames", type=int, default=d(8), help="demo: frames of the animation (default 8)")
+        q.add_argument("--resolution", type=float, default=d(1.0),
+                       help="demo: scene tessellation (1.0 = about 200k triangles; 0.3 = 20k)")
+        q.add_argument("--tree", choices=["octree", "kdtree"], default=d("octree"), help="locate: tree kind")
+        q.add_argument("--zone", type=int, default=d(None),
+                       help="locate, render: the zone of a multi-zone SU2 grid (default: all zones as one grid)")
+        q.add_argument("--force", action="store_true", default=d(False),
+                       help="locate: overwrite result files that exist (default: refuse)")
+
     p = argparse.ArgumentParser(prog="python -m matrixtree", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("command", nargs="?", default="demo", choices=["demo", "render", "frames", "locate"])
-    p.add_argument("inputs", nargs="*", help="render: FILE; frames: FOLDER; locate: GRID POINTS")
-    p.add_argument("--out", default="out", help="output folder (default: out)")
-    p.add_argument("--size", nargs=2, type=int, default=[800, 800], metavar=("W", "H"))
-    p.add_argument("--frames", type=int, default=8, help="demo: frames of the animation (default 8)")
-    p.add_argument("--resolution", type=float, default=1.0,
-                   help="demo: scene tessellation (1.0 = about 200k triangles; 0.3 = 20k)")
-    p.add_argument("--methods", default=",".join(METHODS),
-                   help=f"comma-separated subset of {','.join(METHODS)}")
-    p.add_argument("--threads", type=int, default=0, help="OpenMP threads, 0 = all (default)")
-    p.add_argument("--tree", choices=["octree", "kdtree"], default="octree", help="locate: tree kind")
-    a = p.parse_intermixed_args(argv)  # options may come before, between or after the inputs
+    options(p, top=True)
+    sub = p.add_subparsers(dest="command", metavar="{demo,render,frames,locate}")
+    args = {"demo": [], "render": [("file", "mesh or grid file")], "frames": [("folder", "folder of mesh files")],
+            "locate": [("grid", "unstructured grid file (.vtu .vtk .su2 .ex2, Gmsh ...)"),
+                       ("points", ".npy, .csv/.txt/.xyz (x y z per line), or a mesh/grid file's points")]}
+    for name, positionals in args.items():
+        q = sub.add_parser(name, help=_HELP[name], description=_HELP[name])
+        for arg, what in positionals:
+            q.add_argument(arg, help=what)
+        options(q, top=False)
+    return p
+
+
+def _results(stem: str, force: bool) -> list:
+    """locate's result files for ``stem``; ValueError naming those that exist unless ``force``."""
+    files = [stem + "_cells.npy", stem + "_weights.npy"]
+    there = [f for f in files if os.path.exists(f)]
+    if there and not force:
+        raise ValueError(f"{', '.join(there)} exist: pass --force to overwrite, or choose another --out")
+    return files
+
+
+def main(argv=None) -> int:
+    p = _parser()
+    a = p.parse_args(argv)
+    a.command = a.command or "demo"
     methods = tuple(m for m in a.methods.split(",") if m)
     bad = [m for m in methods if m not in METHODS]
     if bad:
@@ -129,39 +176,46 @@ def main(argv=None) -> int:
             frames = [scenes.default_scene(a.resolution, time=f / a.frames) for f in range(a.frames)]
             compare(frames, "demo", a.out, a.size, scenes.DEFAULT_CAMERA, a.threads, methods)
         elif a.command == "render":
-            if len(a.inputs) != 1:
-                p.error("render needs one mesh FILE")
-            mesh = matrixtree.read_mesh(a.inputs[0])
-            name = os.path.splitext(os.path.basename(a.inputs[0]))[0]
+            if a.file.lower().endswith(_GRID_EXTENSIONS):
+                from vtkmodules.vtkFiltersGeometry import vtkGeometryFilter
+
+                from matrixtree.core import _triangulated
+
+                surface = vtkGeometryFilter()
+                surface.SetInputData(matrixtree.read_grid(a.file, zone=a.zone))
+                surface.Update()
+                mesh = _triangulated(surface.GetOutput(), merge_points=False)
+            else:
+                mesh = matrixtree.read_mesh(a.file)
+            name = os.path.splitext(os.path.basename(a.file))[0]
             compare([mesh], name, a.out, a.size, None, a.threads, methods)
         elif a.command == "frames":
-            if len(a.inputs) != 1 or not os.path.isdir(a.inputs[0]):
+            if not os.path.isdir(a.folder):
                 p.error("frames needs one FOLDER of mesh files with the same connectivity")
-            files = sorted(f for ext in ("ply", "obj", "stl", "vtp", "vtk")
-                           for f in glob.glob(os.path.join(a.inputs[0], f"*.{ext}")))
+            files = sorted(f for ext in ("ply", "obj", "off", "stl", "vtp", "vtk")
+                           for f in glob.glob(os.path.join(a.folder, f"*.{ext}")))
             if not files:
-                p.error(f"{a.inputs[0]} holds no mesh files (.ply .obj .stl .vtp .vtk)")
-            print(f"reading {len(files)} frames from {a.inputs[0]}")
+                p.error(f"{a.folder} holds no mesh files (.ply .obj .off .stl .vtp .vtk)")
+            print(f"reading {len(files)} frames from {a.folder}")
             frames = [matrixtree.read_mesh(f) for f in files]
-            name = os.path.basename(os.path.normpath(a.inputs[0]))
+            name = os.path.basename(os.path.normpath(a.folder))
             compare(frames, name, a.out, a.size, None, a.threads, methods)
         else:
-            if len(a.inputs) != 2:
-                p.error("locate needs GRID POINTS")
-            grid = matrixtree.read_grid(a.inputs[0])
-            pts = _read_points(a.inputs[1])
+            stem = os.path.join(a.out, os.path.splitext(os.path.basename(a.points))[0])
+            cells_file, weights_file = _results(stem, a.force)
+            grid = matrixtree.read_grid(a.grid, zone=a.zone)
+            pts = _read_points(a.points)
             loc = matrixtree.CellLocator(grid, tree=a.tree, threads=a.threads)
             t1 = time.perf_counter()
             cells, weights = loc.locate(pts, return_weights=True)
             ms = 1e3 * (time.perf_counter() - t1)
             os.makedirs(a.out, exist_ok=True)
-            stem = os.path.join(a.out, os.path.splitext(os.path.basename(a.inputs[1]))[0])
-            np.save(stem + "_cells.npy", cells)
-            np.save(stem + "_weights.npy", weights)
+            np.save(cells_file, cells)
+            np.save(weights_file, weights)
             found = int(np.sum(cells >= 0))
             print(f"{len(pts):,} points in {grid.GetNumberOfCells():,} cells: {found:,} inside, "
                   f"{len(pts) - found:,} outside (-1); {ms:.1f} ms ({len(pts) / max(ms, 1e-9) / 1e3:.2f} M points/s)")
-            print(f"wrote {stem}_cells.npy and {stem}_weights.npy")
+            print(f"wrote {cells_file} and {weights_file}")
     except (OSError, ValueError, RuntimeError, MemoryError) as e:
         print(f"error: {e or type(e).__name__}", file=sys.stderr)
         return 2

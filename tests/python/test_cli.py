@@ -55,8 +55,9 @@ def test_locate_file_of_points_matches_locator(tmp_path):
     np.save(tmp_path / "pts.npy", pts)
     np.savetxt(tmp_path / "pts.csv", pts, delimiter=",")
     assert cli.main(["locate", grid_path, str(tmp_path / "pts.npy"), "--out", str(tmp_path)]) == 0
-    assert cli.main(["locate", grid_path, str(tmp_path / "pts.csv"), "--out", str(tmp_path)]) == 0
+    assert cli.main(["locate", grid_path, str(tmp_path / "pts.csv"), "--out", str(tmp_path / "csv")]) == 0
     got = np.load(tmp_path / "pts_cells.npy")
+    np.testing.assert_array_equal(np.load(tmp_path / "csv" / "pts_cells.npy"), got)
     from vtkmodules.vtkCommonDataModel import vtkCellLocator
 
     ref = vtkCellLocator()
@@ -77,3 +78,39 @@ def test_bad_arguments_give_errors_not_tracebacks(tmp_path, capsys):
 def test_module_entry_point_runs():
     r = subprocess.run([sys.executable, "-m", "matrixtree", "--help"], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0 and "demo" in r.stdout
+
+
+def test_locate_refuses_to_overwrite_results_without_force(tmp_path, capsys):
+    grid_path = os.path.join(scenes.data_dir(), "cfd", "pipe_flow_tets.vtu")
+    np.save(tmp_path / "pts.npy", np.zeros((4, 3)))
+    (tmp_path / "out").mkdir()
+    np.save(tmp_path / "out" / "pts_cells.npy", np.arange(3))
+    args = ["locate", grid_path, str(tmp_path / "pts.npy"), "--out", str(tmp_path / "out")]
+    assert cli.main(args) == 2
+    assert "pts_cells.npy exist: pass --force to overwrite" in capsys.readouterr().err
+    np.testing.assert_array_equal(np.load(tmp_path / "out" / "pts_cells.npy"), np.arange(3))
+    assert cli.main(args + ["--force"]) == 0
+    assert np.load(tmp_path / "out" / "pts_cells.npy").shape == (4,)
+
+
+@pytest.mark.parametrize("command,names", [("render", ["file"]), ("locate", ["grid", "points", "--zone", "--force"]),
+                                           ("frames", ["folder"]), ("demo", ["--resolution"])])
+def test_every_subcommand_has_its_own_help(command, names, capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main([command, "--help"])
+    out = capsys.readouterr().out
+    assert e.value.code == 0 and f"python -m matrixtree {command}" in out
+    assert all(n in out for n in names)
+
+
+def test_render_takes_a_volume_grid_and_draws_its_surface(tmp_path):
+    grid_path = os.path.join(scenes.data_dir(), "cfd", "brick_hex.su2")
+    assert cli.main(["render", grid_path, "--size", "24", "16", "--methods", "octree", "--out", str(tmp_path)]) == 0
+    rows = json.load(open(tmp_path / "brick_hex_table.json"))
+    from vtkmodules.vtkFiltersGeometry import vtkGeometryFilter
+
+    surface = vtkGeometryFilter()
+    surface.SetInputData(matrixtree.read_grid(grid_path))
+    surface.Update()
+    quads = surface.GetOutput().GetNumberOfPolys()
+    assert quads > 1000 and rows[0]["triangles"] == 2 * quads  # each boundary quad as two triangles
