@@ -355,6 +355,8 @@ def test_off_with_counts_on_the_header_line_and_n_dimension(tmp_path):
     for name in ("a.off", "b.off"):
         for a, b in zip(arrays(read_off(str(tmp_path / name))), arrays(src)):
             np.testing.assert_array_equal(a, b)
+    mesh = matrixtree.read_mesh(str(tmp_path / "a.off"))  # the public reader, triangulated
+    assert mesh.GetNumberOfPolys() == src.triangulate().n_cells
 
 
 @pytest.mark.parametrize("text,match", [
@@ -369,12 +371,10 @@ def test_off_with_counts_on_the_header_line_and_n_dimension(tmp_path):
     ("OFF\nthree 1 0\n", r"line 2: expected the counts"),
 ])
 def test_bad_off_files_are_errors_naming_the_line(tmp_path, text, match):
-    from matrixtree._readers import read_off
-
     path = tmp_path / "bad.off"
     path.write_text(text)
     with pytest.raises(ValueError, match=match) as e:
-        read_off(str(path))
+        matrixtree.read_mesh(str(path))
     assert str(path) in str(e.value)
 
 
