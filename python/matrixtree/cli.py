@@ -13,8 +13,11 @@ the output folder (``out/`` by default).
 ``frames FOLDER``      a folder of meshes with the same connectivity, one frame per file.
 ``locate GRID POINTS`` locate the points of a file (``.npy``, ``.csv``/``.txt`` with x y z per
                        line, or any mesh/grid file's points) in an unstructured grid (``.vtu``,
-                       ``.vtk``, Exodus, SU2...); writes the cell ids (and weights) as ``.npy``,
-                       refusing to overwrite existing results unless ``--force``.
+                       ``.vtk``, Exodus, SU2...); writes the cell ids (and weights) as ``.npy``
+                       and, with ``--fields vtp|npz``, the grid's point and cell data
+                       interpolated at the points (``matrixtree.probe``) with the cell ids and
+                       ``vtkValidPointMask``; refuses to overwrite existing results unless
+                       ``--force``.
 
 ``python -m matrixtree SUBCOMMAND --help`` lists each subcommand's arguments.
 """
@@ -110,7 +113,8 @@ _HELP = {
     "render": "the comparison on one mesh file (.ply .obj .off .stl .vtp .vtk) or the boundary surface "
               "of a volume grid file (.vtu .su2 .ex2 ...)",
     "frames": "a folder of meshes with the same connectivity, one frame per file",
-    "locate": "locate the points of a file in an unstructured grid; writes the cell ids and weights (.npy)",
+    "locate": "locate the points of a file in an unstructured grid; writes the cell ids and weights (.npy) "
+              "and, with --fields, the grid's fields interpolated at the points (.vtp or .npz)",
 }
 _GRID_EXTENSIONS = (".vtu", ".su2", ".ex2", ".exo", ".e", ".msh", ".inp", ".mesh")
 
@@ -132,6 +136,9 @@ def _parser() -> argparse.ArgumentParser:
         q.add_argument("--tree", choices=["octree", "kdtree"], default=d("octree"), help="locate: tree kind")
         q.add_argument("--zone", type=int, default=d(None),
                        help="locate, render: the zone of a multi-zone SU2 grid (default: all zones as one grid)")
+        q.add_argument("--fields", choices=["vtp", "npz"], default=d(None),
+                       help="locate: also write the grid's fields interpolated at the points, as a point "
+                            "cloud (.vtp) or named arrays (.npz)")
         q.add_argument("--force", action="store_true", default=d(False),
                        help="locate: overwrite result files that exist (default: refuse)")
 
@@ -150,10 +157,11 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _results(stem: str, force: bool) -> list:
-    """locate's result files for ``stem``; ValueError naming those that exist unless ``force``."""
-    files = [stem + "_cells.npy", stem + "_weights.npy"]
-    there = [f for f in files if os.path.exists(f)]
+def _results(stem: str, fields: str | None, force: bool) -> list:
+    """locate's result files for ``stem`` (cells, weights, fields or None); ValueError naming
+    those that exist unless ``force``."""
+    files = [stem + "_cells.npy", stem + "_weights.npy", f"{stem}_fields.{fields}" if fields else None]
+    there = [f for f in files if f and os.path.exists(f)]
     if there and not force:
         raise ValueError(f"{', '.join(there)} exist: pass --force to overwrite, or choose another --out")
     return files
@@ -202,7 +210,7 @@ def main(argv=None) -> int:
             compare(frames, name, a.out, a.size, None, a.threads, methods)
         else:
             stem = os.path.join(a.out, os.path.splitext(os.path.basename(a.points))[0])
-            cells_file, weights_file = _results(stem, a.force)
+            cells_file, weights_file, fields_file = _results(stem, a.fields, a.force)
             grid = matrixtree.read_grid(a.grid, zone=a.zone)
             pts = _read_points(a.points)
             loc = matrixtree.CellLocator(grid, tree=a.tree, threads=a.threads)
@@ -215,6 +223,14 @@ def main(argv=None) -> int:
             found = int(np.sum(cells >= 0))
             print(f"{len(pts):,} points in {grid.GetNumberOfCells():,} cells: {found:,} inside, "
                   f"{len(pts) - found:,} outside (-1); {ms:.1f} ms ({len(pts) / max(ms, 1e-9) / 1e3:.2f} M points/s)")
+            if fields_file:
+                probed = matrixtree.probe(grid, pts, locator=loc)
+                probed.point_data["cell_id"] = cells
+                if a.fields == "vtp":
+                    probed.save(fields_file)
+                else:
+                    np.savez(fields_file, points=pts, **{k: np.asarray(probed.point_data[k]) for k in probed.point_data.keys()})
+                print(f"wrote {fields_file}: {', '.join(probed.point_data.keys())}")
             print(f"wrote {cells_file} and {weights_file}")
     except (OSError, ValueError, RuntimeError, MemoryError) as e:
         print(f"error: {e or type(e).__name__}", file=sys.stderr)

@@ -114,3 +114,35 @@ def test_render_takes_a_volume_grid_and_draws_its_surface(tmp_path):
     surface.Update()
     quads = surface.GetOutput().GetNumberOfPolys()
     assert quads > 1000 and rows[0]["triangles"] == 2 * quads  # each boundary quad as two triangles
+
+
+@pytest.mark.parametrize("fmt", ["vtp", "npz"])
+def test_locate_writes_fields_interpolated_at_the_points(tmp_path, fmt):
+    """A linear point field on tetrahedra is interpolated exactly; a cell field is the containing
+    cell's; points outside get the mask 0."""
+    import pyvista as pv
+
+    grid = pv.ImageData(dimensions=(5, 4, 3), spacing=(0.5, 0.5, 0.5)).triangulate()
+    grid.point_data["f"] = grid.points @ np.array([1.0, -2.0, 3.0])
+    grid.cell_data["c"] = np.arange(grid.n_cells, dtype=float)
+    grid.save(tmp_path / "g.vtu")
+    rng = np.random.default_rng(5)
+    pts = np.vstack([rng.uniform([0, 0, 0], [2, 1.5, 1], size=(50, 3)), [[5.0, 5.0, 5.0]]])
+    np.save(tmp_path / "p.npy", pts)
+    assert cli.main(["locate", str(tmp_path / "g.vtu"), str(tmp_path / "p.npy"), "--fields", fmt,
+                     "--out", str(tmp_path / "o")]) == 0
+    path = tmp_path / "o" / f"p_fields.{fmt}"
+    if fmt == "vtp":
+        got = pv.read(path)
+        arrays = {k: np.asarray(got.point_data[k]) for k in got.point_data.keys()}
+        np.testing.assert_allclose(got.points, pts)
+    else:
+        arrays = dict(np.load(path))
+        np.testing.assert_array_equal(arrays["points"], pts)
+    cells = np.load(tmp_path / "o" / "p_cells.npy")
+    np.testing.assert_array_equal(arrays["cell_id"], cells)
+    assert list(arrays["vtkValidPointMask"]) == [1] * 50 + [0]
+    np.testing.assert_allclose(arrays["f"][:50], pts[:50] @ np.array([1.0, -2.0, 3.0]), atol=1e-12)
+    np.testing.assert_array_equal(arrays["c"][:50], cells[:50])
+    assert cli.main(["locate", str(tmp_path / "g.vtu"), str(tmp_path / "p.npy"), "--fields", fmt,
+                     "--out", str(tmp_path / "o")]) == 2  # results there: refused
