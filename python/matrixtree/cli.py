@@ -9,7 +9,10 @@ triangle tests per ray) and writes the first frame's pictures and heat maps and 
 the output folder (``out/`` by default).
 
 ``render FILE``        the same comparison on one mesh file of yours (one frame), or on the
-                       boundary surface of a volume grid file (``--zone`` picks an SU2 zone).
+                       boundary surface of a volume grid file (``--zone`` picks an SU2 zone);
+                       a scalar volume (``.mhd``, ``.nii``, ``.vti``, ``.slc``, legacy ``.vtk``
+                       structured points) is ray cast instead (``matrixtree.render_volume``,
+                       default transfer functions) into ``NAME_volume.png``.
 ``frames FOLDER``      a folder of meshes with the same connectivity, one frame per file.
 ``locate GRID POINTS`` locate the points of a file (``.npy``, ``.csv``/``.txt`` with x y z per
                        line, or any mesh/grid file's points) in an unstructured grid (``.vtu``,
@@ -111,12 +114,40 @@ def _read_points(path: str) -> np.ndarray:
 _HELP = {
     "demo": "the generated animated scene (the default: no arguments, no downloads)",
     "render": "the comparison on one mesh file (.ply .obj .off .stl .vtp .vtk) or the boundary surface "
-              "of a volume grid file (.vtu .su2 .ex2 ...)",
+              "of a volume grid file (.vtu .su2 .ex2 ...); a scalar volume (.mhd .mha .nii .nii.gz .slc .vti, "
+              ".vtk structured points) is ray cast into NAME_volume.png",
     "frames": "a folder of meshes with the same connectivity, one frame per file",
     "locate": "locate the points of a file in an unstructured grid; writes the cell ids and weights (.npy) "
               "and, with --fields, the grid's fields interpolated at the points (.vtp or .npz)",
 }
 _GRID_EXTENSIONS = (".vtu", ".su2", ".ex2", ".exo", ".e", ".msh", ".inp", ".mesh")
+_VOLUME_EXTENSIONS = (".mhd", ".mha", ".nii", ".nii.gz", ".slc", ".vti")
+
+
+def _is_volume(path: str) -> bool:
+    """A scalar-volume file: by its ending, or a legacy .vtk file whose header declares
+    STRUCTURED_POINTS (legacy .vtk also holds meshes)."""
+    low = path.lower()
+    if low.endswith(_VOLUME_EXTENSIONS):
+        return True
+    if low.endswith(".vtk") and os.path.isfile(path):
+        with open(path, "rb") as f:
+            return b"STRUCTURED_POINTS" in f.read(1024)
+    return False
+
+
+def render_volume_file(path: str, out_dir: str, size, threads: int) -> str:
+    """Ray casts the volume at ``path`` (default camera and transfer functions) over black and
+    writes ``NAME_volume.png`` into ``out_dir``; returns its path."""
+    volume = matrixtree.read_volume(path)
+    t1 = time.perf_counter()
+    rgba = matrixtree.render_volume(volume, size=tuple(size), threads=threads)
+    ms = 1e3 * (time.perf_counter() - t1)
+    name = os.path.basename(path).split(".")[0]
+    png = matrixtree.save_rgb(np.clip(rgba[..., :3] * 255.0 + 0.5, 0, 255), os.path.join(out_dir, f"{name}_volume.png"))
+    dims = volume.GetDimensions()
+    print(f"{name}: {dims[0]}x{dims[1]}x{dims[2]} voxels, {size[0]}x{size[1]} pixels, {ms:.1f} ms; wrote {png}")
+    return png
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -183,6 +214,8 @@ def main(argv=None) -> int:
             print(f"generating {a.frames} frames of the default scene (resolution {a.resolution})")
             frames = [scenes.default_scene(a.resolution, time=f / a.frames) for f in range(a.frames)]
             compare(frames, "demo", a.out, a.size, scenes.DEFAULT_CAMERA, a.threads, methods)
+        elif a.command == "render" and _is_volume(a.file):
+            render_volume_file(a.file, a.out, a.size, a.threads)
         elif a.command == "render":
             if a.file.lower().endswith(_GRID_EXTENSIONS):
                 from vtkmodules.vtkFiltersGeometry import vtkGeometryFilter

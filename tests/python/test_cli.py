@@ -146,3 +146,15 @@ def test_locate_writes_fields_interpolated_at_the_points(tmp_path, fmt):
     np.testing.assert_array_equal(arrays["c"][:50], cells[:50])
     assert cli.main(["locate", str(tmp_path / "g.vtu"), str(tmp_path / "p.npy"), "--fields", fmt,
                      "--out", str(tmp_path / "o")]) == 2  # results there: refused
+
+
+def test_render_ray_casts_a_volume_file(tmp_path):
+    """The picture equals matrixtree.render_volume's image of the same volume."""
+    from PIL import Image
+
+    path = os.path.join(scenes.data_dir(), "volumes", "ironProt.vtk")
+    assert cli.main(["render", path, "--size", "40", "32", "--threads", "1", "--out", str(tmp_path)]) == 0
+    got = np.asarray(Image.open(tmp_path / "ironProt_volume.png"))
+    want = matrixtree.render_volume(matrixtree.read_volume(path), size=(40, 32), threads=1)
+    assert got.shape == (32, 40, 3) and got.max() > 50
+    assert np.abs(got.astype(int) - np.clip(want[..., :3] * 255 + 0.5, 0, 255).astype(int)).max() <= 1
