@@ -359,18 +359,23 @@ def test_off_with_counts_on_the_header_line_and_n_dimension(tmp_path):
     assert mesh.GetNumberOfPolys() == src.triangulate().n_cells
 
 
-@pytest.mark.parametrize("text,match", [
-    ("OFF BINARY\n", r"binary OFF is not supported"),
-    ("4OFF\n1 0 0\n0 0 0 1\n", r"4-D vertices"),
-    ("nOFF\n4\n1 0 0\n0 0 0 0\n", r"dimension '4'"),
-    ("PLY\n", r"not an OFF file"),
-    ("OFF\n3 1\n0 0 0\n1 0 0\n", r"declares 3 vertices and 1 faces, but only 2 data lines follow"),
-    ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", r"line 6: face 0 refers to vertex 3, but the file has 3"),
-    ("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", r"line 4: a vertex needs three numbers"),
-    ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n", r"line 6: the face lists 4 vertices but holds 3"),
-    ("OFF\nthree 1 0\n", r"line 2: expected the counts"),
-])
-def test_bad_off_files_are_errors_naming_the_line(tmp_path, text, match):
+#: a damaged OFF file's text -> the error's words
+BAD_OFF = {
+    "binary": ("OFF BINARY\n", r"binary OFF is not supported"),
+    "4-D": ("4OFF\n1 0 0\n0 0 0 1\n", r"4-D vertices"),
+    "n-D": ("nOFF\n4\n1 0 0\n0 0 0 0\n", r"dimension '4'"),
+    "not OFF": ("PLY\n", r"not an OFF file"),
+    "truncated": ("OFF\n3 1\n0 0 0\n1 0 0\n", r"declares 3 vertices and 1 faces, but only 2 data lines follow"),
+    "bad index": ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", r"line 6: face 0 refers to vertex 3, but the file has 3"),
+    "bad number": ("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", r"line 4: a vertex needs three numbers"),
+    "short face": ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n", r"line 6: the face lists 4 vertices but holds 3"),
+    "bad counts": ("OFF\nthree 1 0\n", r"line 2: expected the counts"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_OFF))
+def test_bad_off_files_are_errors_naming_the_line(tmp_path, case):
+    text, match = BAD_OFF[case]
     path = tmp_path / "bad.off"
     path.write_text(text)
     with pytest.raises(ValueError, match=match) as e:
