@@ -24,7 +24,8 @@ Python-driven, on the same primary rays and the same kind of shadow rays.
 time with Catmull-Rom splines to ``--frames`` frames), or ``ben-deformed`` (Utah Ben bent and
 twisted over time), or ``gen:SHAPE:N`` (a generated mesh of about N triangles, see
 bench/gen_scenes.py: ``sphere``, ``terrain``, ``scatter``); ``--generated N1,N2,..`` adds every
-shape at each size (above 2e6 triangles only with ``--huge``: 1e7 needs several GiB). The
+shape at each size (above 2e6 triangles only with ``--huge``: about 16 GB at 1e7 with every
+method, 10 GB with ``--methods octree,sah-stack --no-embree``). The
 brute-force check uses ``--samples`` pixels up to 1e6 triangles, fewer above (2e9 / triangles, at
 least 100). Rows go to ``--json``; ``--md`` writes the markdown table, ``--chart`` the
 speed-up chart and ``--heatmaps`` the node-visit and triangle-test heat maps of the first frame.
@@ -636,7 +637,9 @@ def main(argv=None) -> int:
                     help="comma-separated triangle counts (e.g. 1e3,1e4,1e5,1e6): adds the generated "
                          f"scenes ({', '.join(gen_scenes.SHAPES)}) at each size; alone, only those run")
     ap.add_argument("--huge", action="store_true",
-                    help=f"allow generated scenes above {HUGE_TRIANGLES:.0e} triangles (1e7: several GiB)")
+                    help=f"allow generated scenes above {HUGE_TRIANGLES:.0e} triangles: rays_bench peaks near "
+                         "1.6 GB per 1e6 triangles with every method, 1.0 GB with --methods octree,sah-stack "
+                         "(docs/bench_rays.md)")
     ap.add_argument("--json", default=os.path.join(ROOT, "out", "bench_rays.json"))
     ap.add_argument("--md", help="write the markdown table here (e.g. out/bench_rays.md)")
     ap.add_argument("--chart", help="write the speed-up chart here (e.g. docs/images/rays_speedup.png)")
