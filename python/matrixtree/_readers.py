@@ -8,7 +8,7 @@ points, fails on CRLF line ends, and raises KeyError on high-order elements. The
 every count against the data that follow, every index against the points read, and raise
 ValueError naming the file, the element and the line or record; the mesh they return equals
 VTK's (PLY, OBJ) or meshio's (single-zone linear SU2) for a valid file
-(tests/python/test_reliability_readers.py and tests/python/test_readers.py compare them).
+(tests/python/test_reliability_readers.py compares them).
 
 Not public API: ``matrixtree.read_mesh`` and ``matrixtree.read_grid`` call them.
 """
