@@ -3,9 +3,10 @@
 ``vtkPLYReader`` crashes (segfault, double free) on a truncated file or one whose header declares
 more elements than the file holds, and reads no triangle strips; ``vtkOBJReader`` reads a face's
 out-of-range vertex index from out-of-bounds memory; VTK 9.1 has no OFF reader; meshio's SU2
-reader merges the zones of a multi-zone file into one grid whose cells index the wrong zone's
-points, fails on CRLF line ends, and raises KeyError on high-order elements. These readers check
-every count against the data that follow, every index against the points read, and raise
+reader keeps one zone's points of a multi-zone file with every zone's cells (which then index
+the wrong points) and raises KeyError on high-order elements. These readers take any line ending
+(LF, CRLF, CR), check every count against the data that follow, every index against the points
+read, and raise
 ValueError naming the file, the element and the line or record; the mesh they return equals
 VTK's (PLY, OBJ) or meshio's (single-zone linear SU2) for a valid file
 (tests/python/test_reliability_readers.py compares them).
