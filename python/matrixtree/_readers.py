@@ -6,9 +6,8 @@ out-of-range vertex index from out-of-bounds memory; VTK 9.1 has no OFF reader; 
 reader keeps one zone's points of a multi-zone file with every zone's cells (which then index
 the wrong points) and raises KeyError on high-order elements. These readers take any line ending
 (LF, CRLF, CR), check every count against the data that follow, every index against the points
-read, and raise
-ValueError naming the file, the element and the line or record; the mesh they return equals
-VTK's (PLY, OBJ) or meshio's (single-zone linear SU2) for a valid file
+read, and raise ValueError naming the file, the element and the line or record; the mesh they
+return equals VTK's (PLY, OBJ) or meshio's (single-zone linear SU2) for a valid file
 (tests/python/test_reliability_readers.py compares them).
 
 Not public API: ``matrixtree.read_mesh`` and ``matrixtree.read_grid`` call them.
