@@ -18,10 +18,16 @@ Python-driven, on the same primary rays and the same kind of shadow rays.
     .venv/bin/python bench/rays.py --scene ../shared/data/animated/horse_poses --frames 30
     .venv/bin/python bench/rays.py --scene ben-deformed --frames 30
     .venv/bin/python bench/rays.py --scene bunny --backend all   # + the OpenCL device's rows
+    .venv/bin/python bench/rays.py --generated 1e3,1e4,1e5,1e6 --threads 1 --clock cpu  # generated meshes
 
 ``--scene`` takes a mesh file, a folder of frames with the same connectivity (interpolated in
 time with Catmull-Rom splines to ``--frames`` frames), or ``ben-deformed`` (Utah Ben bent and
-twisted over time). Rows go to ``--json``; ``--md`` writes the markdown table, ``--chart`` the
+twisted over time), or ``gen:SHAPE:N`` (a generated mesh of about N triangles, see
+bench/gen_scenes.py: ``sphere``, ``terrain``, ``scatter``); ``--generated N1,N2,..`` adds every
+shape at each size (above 2e6 triangles only with ``--huge``: about 16 GB at 1e7 with every
+method, 10 GB with ``--methods octree,sah-stack --no-embree``). The
+brute-force check uses ``--samples`` pixels up to 1e6 triangles, fewer above (2e9 / triangles, at
+least 100). Rows go to ``--json``; ``--md`` writes the markdown table, ``--chart`` the
 speed-up chart and ``--heatmaps`` the node-visit and triangle-test heat maps of the first frame.
 ``--backend opencl|all`` adds (or keeps only) the matrix trees built and traced on an OpenCL device
 (``--device`` picks it): rows with ``backend`` "opencl", the device's name, and their first hits
@@ -41,6 +47,7 @@ import time
 
 import numpy as np
 
+import gen_scenes
 from _common import ROOT, machine, markdown, require_driver, table  # noqa: F401  (sys.path set up there)
 from matrixtree import scenes
 
@@ -63,7 +70,13 @@ VIEWS = {
     "nefertiti": ((0.0, -1.0, 0.2), (0, 0, 1)),
     "horse": ((1.0, 0.3, 0.6), (0, 1, 0)),
     "horse_animated": ((0.4, 0.25, 1.0), (0, 1, 0)),
+    "terrain": ((0.5, 0.7, 1.0), (0, 1, 0)),  # generated scenes: keyed by shape, whatever the size
+    "scatter": ((0.3, 0.4, 1.0), (0, 1, 0)),
 }
+#: generated scenes above this many triangles need --huge (memory on a shared machine)
+HUGE_TRIANGLES = 2_000_000
+#: the brute-force check's budget: samples x triangles (1e6 triangles keep 2,000 samples)
+BRUTE_FORCE_TESTS = 2e9
 
 DEFAULT_SCENES = ["utah_hand", "utah_ben", "bunny", "lucy", "turbineblade", "nefertiti", "horse",
                   "horse_animated", "ben_deformed"]
@@ -163,6 +176,15 @@ def deform_ben(points: np.ndarray, n: int) -> list:
 
 def load_scene(spec: str, n_frames: int):
     """(name, triangles (m, 3) uint32, [points (n, 3) float64 per frame])."""
+    if spec.startswith("gen:"):
+        try:
+            _, shape, n = spec.split(":")
+            n = int(float(n))
+            pts, tris = gen_scenes.generate(shape, n)
+        except ValueError as e:
+            raise SystemExit(f"--scene {spec}: expected gen:SHAPE:N with SHAPE in "
+                             f"{', '.join(gen_scenes.SHAPES)} and N triangles ({e})") from None
+        return f"{shape}_{gen_scenes.label(n)}", tris, [pts] * max(n_frames, 1)
     real = scenes.real_scenes()
     if spec in ("ben-deformed", "ben_deformed"):
         pts, tris = _mesh_arrays(real["utah_ben"])
@@ -204,7 +226,7 @@ def fit_camera(name: str, frames: list, size, fovy: float = 30.0):
     lo = np.min([f.min(axis=0) for f in frames], axis=0)
     hi = np.max([f.max(axis=0) for f in frames], axis=0)
     c, r = 0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo)
-    d, up = VIEWS.get(name, ((0.0, 0.0, 1.0), (0, 1, 0)))
+    d, up = VIEWS.get(name, VIEWS.get(name.rsplit("_", 1)[0], ((0.0, 0.0, 1.0), (0, 1, 0))))
     d = np.asarray(d, float) / np.linalg.norm(d)
     aspect = size[0] / size[1]
     half = np.radians(fovy) / 2
@@ -516,7 +538,8 @@ def run_scene(spec: str, args, heat_out: str | None) -> list:
         if len(frames) == 1:  # a refit needs a previous frame's BVH
             methods = ",".join(m for m in methods.split(",") if m != "embree-refit")
         cmd = [BIN, scene_bin, out_json, "--threads", str(args.threads), "--repeat", str(repeat),
-               "--tests", args.tests, "--methods", methods, "--samples", str(args.samples),
+               "--tests", args.tests, "--methods", methods, "--samples",
+               str(min(args.samples, max(100, int(BRUTE_FORCE_TESTS // max(len(tris), 1))))),
                "--short-stack", str(args.short_stack), "--backend", args.backend,
                "--leaf-scale", str(args.leaf_scale), "--leaves", args.leaves]
         if args.in_flight:
@@ -610,14 +633,25 @@ def main(argv=None) -> int:
                     help="cpu (OpenMP engine), opencl (matrix trees on the OpenCL device) or all")
     ap.add_argument("--device", default="",
                     help="OpenCL device selector (P:D, index or name part; default $MATRIXTREE_OPENCL_DEVICE/first)")
+    ap.add_argument("--generated", default="",
+                    help="comma-separated triangle counts (e.g. 1e3,1e4,1e5,1e6): adds the generated "
+                         f"scenes ({', '.join(gen_scenes.SHAPES)}) at each size; alone, only those run")
+    ap.add_argument("--huge", action="store_true",
+                    help=f"allow generated scenes above {HUGE_TRIANGLES:.0e} triangles: rays_bench peaks near "
+                         "1.6 GB per 1e6 triangles with every method, 1.0 GB with --methods octree,sah-stack "
+                         "(docs/bench_rays.md)")
     ap.add_argument("--json", default=os.path.join(ROOT, "out", "bench_rays.json"))
     ap.add_argument("--md", help="write the markdown table here (e.g. out/bench_rays.md)")
     ap.add_argument("--chart", help="write the speed-up chart here (e.g. docs/images/rays_speedup.png)")
     ap.add_argument("--heatmaps", help="write per-scene heat maps (PNG) into this folder")
     args = ap.parse_args(argv)
 
+    sizes = [int(float(x)) for x in args.generated.split(",") if x]
+    if any(n > HUGE_TRIANGLES for n in sizes) and not args.huge:
+        ap.error(f"--generated {args.generated}: sizes above {HUGE_TRIANGLES:.0e} triangles need --huge")
     require_driver(BIN)
-    specs = args.scene or DEFAULT_SCENES
+    specs = (args.scene or ([] if sizes else DEFAULT_SCENES)) + \
+        [f"gen:{shape}:{n}" for n in sizes for shape in gen_scenes.SHAPES]
     if not args.frames:
         args.frames = 30
     rows = []

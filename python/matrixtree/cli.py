@@ -9,8 +9,8 @@ then prints a table like the paper's Table 1 (build and render ms per frame, nod
 triangle tests per ray) and writes the first frame's pictures and heat maps and the table into
 the output folder (``out/`` by default).
 
-``render FILE``        a mesh (.ply .obj .stl .vtp): the same comparison (one frame); a volume
-                       grid (.vtu, Exodus, SU2, Gmsh...): the same on its boundary surface; a
+``render FILE``        a mesh (.ply .obj .off .stl .vtp): the same comparison (one frame); a volume
+                       grid (.vtu, Exodus, SU2 (``--zone``), Gmsh...): the same on its boundary surface; a
                        volume (.mhd .mha .nii .nii.gz .slc .vti): a volume rendering. A legacy
                        .vtk file is whichever its DATASET line says.
 ``frames FOLDER``      a folder of meshes with the same connectivity, one frame per file.
@@ -109,7 +109,7 @@ def _read_points(path: str) -> np.ndarray:
 
 COMMANDS = ("demo", "render", "frames", "locate")
 _VOLUME_EXTS = (".mhd", ".mha", ".nii", ".nii.gz", ".slc", ".vti")
-_MESH_EXTS = (".ply", ".obj", ".stl", ".vtp")
+_MESH_EXTS = (".ply", ".obj", ".off", ".stl", ".vtp")
 _LOCATE_FORMATS = (".npz", ".vtp", ".vtu")
 
 
@@ -186,7 +186,7 @@ def _locate(a) -> None:
     import pyvista as pv
 
     out = _locate_output(a, a.points)
-    grid = matrixtree.read_grid(a.grid)
+    grid = matrixtree.read_grid(a.grid, zone=a.zone)
     pts = _read_points(a.points)
     loc = matrixtree.CellLocator(grid, tree=a.tree, threads=a.threads)
     t1 = time.perf_counter()
@@ -235,7 +235,7 @@ def _parser() -> argparse.ArgumentParser:
     d.add_argument("--resolution", type=float, default=1.0,
                    help="scene tessellation (1.0 = about 200k triangles; 0.3 = 20k)")
     r = sub.add_parser("render", parents=[common, methods], help="a mesh, a grid's surface or a volume",
-                       description="A mesh (.ply .obj .stl .vtp): every method on it, one frame. A volume grid "
+                       description="A mesh (.ply .obj .off .stl .vtp): every method on it, one frame. A volume grid "
                                    "(.vtu, Exodus .exo/.e/.ex2, SU2, Gmsh, ...): the same on its boundary surface. "
                                    "A volume (.mhd .mha .nii .nii.gz .slc .vti): a volume rendering with the default "
                                    "transfer functions. A legacy .vtk file: whichever its DATASET line says.")
@@ -251,6 +251,9 @@ def _parser() -> argparse.ArgumentParser:
                                      "(-1 outside), interpolation weights, every field and vtkValidPointMask.")
     loc.add_argument("grid", metavar="GRID")
     loc.add_argument("points", metavar="POINTS")
+    for q in (r, loc):
+        q.add_argument("--zone", type=int, default=None,
+                       help="the zone of a multi-zone SU2 grid (default: every zone, as one grid)")
     loc.add_argument("--tree", choices=["octree", "kdtree"], default="octree", help="tree kind (default octree)")
     loc.add_argument("--output", metavar="FILE",
                      help="result file: .npz (arrays points, cell_ids, weights, point_data/<name>), .vtp or .vtu "
@@ -288,7 +291,8 @@ def main(argv=None) -> int:
             if kind == "volume":
                 _render_volume_file(path, a.out, a.size, a.threads)
             else:
-                mesh = matrixtree.read_mesh(path) if kind == "mesh" else grid_surface(matrixtree.read_grid(path))
+                mesh = (matrixtree.read_mesh(path) if kind == "mesh" else
+                        grid_surface(matrixtree.read_grid(path, zone=a.zone)))
                 name = os.path.basename(path)[: -len(_extension(path)) or None]
                 compare([mesh], name, a.out, a.size, None, a.threads, methods)
         elif a.command == "frames":

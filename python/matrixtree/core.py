@@ -19,7 +19,7 @@ from matrixtree._backend import VTK_MODULE
 if VTK_MODULE:
     from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
 from matrixtree import _checks, _meshstate
-from matrixtree._readers import check_not_empty, read_obj, read_ply
+from matrixtree._readers import check_not_empty, read_obj, read_off, read_ply
 from matrixtree._util import (RAY_TREES, SPLIT_TREES, VtkErrors, check_backend, existing_file, points3, read_by_extension,
                               tree_type, vtk_points)
 
@@ -28,8 +28,8 @@ def _backend(backend: str) -> int:
     return vtkMatrixTree.OPENCL if check_backend(backend) == "opencl" else vtkMatrixTree.CPU
 
 
-# PLY and OBJ go through the checking readers of matrixtree._readers (VTK 9.1's crash on, or
-# read out of bounds for, truncated and malformed files); the others through VTK's readers in a
+# PLY, OBJ and OFF go through the checking readers of matrixtree._readers (VTK 9.1's crash on, or
+# read out of bounds for, truncated and malformed files, and has no OFF reader); the others through VTK's readers in a
 # child process (matrixtree._sandbox), whose errors and crashes become ValueError.
 _MESH_READERS = {".stl": "vtkIOGeometry.vtkSTLReader", ".vtp": "vtkIOXML.vtkXMLPolyDataReader",
                  ".vtk": "vtkIOLegacy.vtkPolyDataReader"}
@@ -44,10 +44,11 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
     Parameters
     ----------
     path : str or os.PathLike
-        A ``.ply``, ``.obj``, ``.stl``, ``.vtp`` or legacy ``.vtk`` file. OBJ files are
-        triangulated and their duplicated vertices merged. PLY (ASCII and binary) and OBJ are
-        read by checking readers: every count in a PLY header is checked against the bytes that
-        follow and every face index against the vertices, before anything is allocated.
+        A ``.ply``, ``.obj``, ``.off``, ``.stl``, ``.vtp`` or legacy ``.vtk`` file. OBJ files are
+        triangulated and their duplicated vertices merged. PLY (ASCII and binary, faces and
+        triangle strips), OBJ and OFF (ASCII, Geomview's prefixes ST, C, N, n) are read by
+        checking readers: every count in a header is checked against the data that follow and
+        every face index against the vertices, before anything is allocated.
 
     Returns
     -------
@@ -77,8 +78,10 @@ def read_mesh(path: str | os.PathLike) -> vtkPolyData:
         out = read_ply(path)
     elif ext == ".obj":
         out = read_obj(path)
+    elif ext == ".off":
+        out = read_off(path)
     else:
-        unsupported = f"unsupported mesh extension {ext!r} (use .ply, .obj, .stl, .vtp or .vtk)"
+        unsupported = f"unsupported mesh extension {ext!r} (use .ply, .obj, .off, .stl, .vtp or .vtk)"
         if ext in _MESH_READERS:
             check_not_empty(path, "mesh")
         out = read_by_extension(path, _MESH_READERS, unsupported)  # in a child process: see _sandbox

@@ -5,28 +5,33 @@ from __future__ import annotations
 import os
 
 import numpy as np
-from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
-from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
+from vtkmodules.vtkCommonDataModel import vtkUnstructuredGrid
 
-from matrixtree._readers import check_not_empty
-from matrixtree._util import VtkErrors, existing_file, run_reader, vtk_points
+from matrixtree._readers import VOLUME_TYPES, check_not_empty, read_su2, unstructured_grid
+from matrixtree._util import VtkErrors, existing_file, run_reader
 
 # meshio cell type -> (VTK cell type, points per cell)
 _MESHIO_TO_VTK = {"tetra": (10, 4), "hexahedron": (12, 8), "wedge": (13, 6), "pyramid": (14, 5),
                   "triangle": (5, 3), "quad": (9, 4), "tetra10": (24, 10), "hexahedron20": (25, 20)}
-_VOLUME = {10, 12, 13, 14, 24, 25}
 
 
-def read_grid(path: str | os.PathLike, volume_only: bool = True) -> vtkUnstructuredGrid:
+def read_grid(path: str | os.PathLike, volume_only: bool = True, zone: int | None = None) -> vtkUnstructuredGrid:
     """Read an unstructured grid: ``.vtu`` and legacy ``.vtk`` through VTK, Exodus II (``.ex2``,
-    ``.exo``) through ``vtkExodusIIReader`` (first block set, merged), anything else (SU2,
-    Gmsh, ...) through meshio.
+    ``.exo``) through ``vtkExodusIIReader`` (first block set, merged), SU2 (``.su2``, ASCII)
+    through the checking reader of ``matrixtree._readers``, anything else (Gmsh, ...) through
+    meshio.
 
     Parameters
     ----------
     path : str or os.PathLike
     volume_only : bool, default: True
         Keep only 3-D cells (SU2 files also carry their boundary faces as markers).
+    zone : int, optional
+        SU2 only. A multi-zone SU2 file (``NZONE=``) is read, by default, as one grid holding
+        every zone: each zone's points after the previous zone's, its cells' point ids shifted to
+        match, and a cell array ``zone`` with each cell's ``IZONE`` number. ``zone=k`` reads
+        zone ``k`` alone. SU2's high-order (FEM) elements are refused with a ValueError naming
+        the line; only linear elements are read.
 
     Returns
     -------
@@ -39,7 +44,8 @@ def read_grid(path: str | os.PathLike, volume_only: bool = True) -> vtkUnstructu
     ValueError
         The file is empty, the reader reports an error (the message is the reader's) or crashes,
         runs out of memory or time on it (the readers run in a child process, see
-        ``matrixtree._sandbox``), the file holds no supported cells, or a cell refers to a point
+        ``matrixtree._sandbox``), the file holds no supported cells, a cell refers to a point
+        the file does not have, or ``zone`` is given for a file that is not SU2 or names a zone
         the file does not have.
 
     Examples
@@ -54,6 +60,10 @@ def read_grid(path: str | os.PathLike, volume_only: bool = True) -> vtkUnstructu
     path = existing_file(path, "grid")
     check_not_empty(path, "grid")
     ext = os.path.splitext(path)[1].lower()
+    if ext == ".su2":  # pure Python and numpy: nothing that can crash, so in this process
+        return read_su2(path, zone=zone, volume_only=volume_only)
+    if zone is not None:
+        raise ValueError(f"{path}: zone= applies to SU2 files only")
     what = {".vtu": "vtkXMLUnstructuredGridReader", ".ex2": "vtkExodusIIReader", ".exo": "vtkExodusIIReader",
             ".e": "vtkExodusIIReader"}.get(ext, "meshio")
     grid = _sandbox.read("matrixtree.grids.read_grid_here", path, what, "1" if volume_only else "0")
@@ -101,7 +111,7 @@ def read_grid_here(path: str, volume_only: str = "1") -> vtkUnstructuredGrid:
 
     import meshio
 
-    # meshio warns line by line about SU2 marker sections it skips: thousands of lines.
+    # meshio's readers print warnings line by line (thousands for some formats).
     sink = io.StringIO()
     level = logging.getLogger().level
     logging.getLogger().setLevel(logging.ERROR)
@@ -123,7 +133,7 @@ def read_grid_here(path: str, volume_only: str = "1") -> vtkUnstructuredGrid:
         if block.type not in _MESHIO_TO_VTK:
             continue
         vtype, npc = _MESHIO_TO_VTK[block.type]
-        if volume_only and vtype not in _VOLUME:
+        if volume_only and vtype not in VOLUME_TYPES:
             continue
         data = np.asarray(block.data, dtype=np.int64).reshape(-1, npc)
         bad = data[(data < 0) | (data >= len(pts))]
@@ -135,12 +145,4 @@ def read_grid_here(path: str, volume_only: str = "1") -> vtkUnstructuredGrid:
         offsets.append(np.full(len(data), npc, dtype=np.int64))
     if not types:
         raise ValueError(f"{path} holds no supported cells")
-    types = np.concatenate(types)
-    conn = np.concatenate(conn)
-    off = np.concatenate([np.zeros(1, np.int64), np.cumsum(np.concatenate(offsets[1:]))])
-    cells = vtkCellArray()
-    cells.SetData(numpy_to_vtkIdTypeArray(off, deep=True), numpy_to_vtkIdTypeArray(conn, deep=True))
-    g = vtkUnstructuredGrid()
-    g.SetPoints(vtk_points(pts))
-    g.SetCells(numpy_to_vtk(types, deep=True, array_type=3), cells)  # 3 = VTK_UNSIGNED_CHAR
-    return g
+    return unstructured_grid(pts, np.concatenate(types), np.concatenate(offsets[1:]), np.concatenate(conn))

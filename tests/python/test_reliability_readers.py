@@ -199,9 +199,13 @@ def test_empty_volume_files_are_an_error(tmp_path, name):
 
 
 def test_meshio_failures_become_value_errors(tmp_path):
-    path = tmp_path / "junk.su2"
-    path.write_text("NDIME= 3\nNELEM= 5\n10 0 1 2\n")
+    path = tmp_path / "junk.msh"
+    path.write_text("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 5 1 5\n3 1 0 5\n1\n")
     with pytest.raises(ValueError, match="meshio could not read it"):
+        matrixtree.read_grid(str(path))
+    path = tmp_path / "junk.su2"  # the same damage in SU2, read by the checking reader
+    path.write_text("NDIME= 3\nNELEM= 5\n10 0 1 2\n")
+    with pytest.raises(ValueError, match="junk.su2: NELEM= declares 5 elements, but only 1 element lines follow"):
         matrixtree.read_grid(str(path))
 
 
@@ -229,3 +233,291 @@ def test_cli_takes_options_before_the_file_argument(tmp_path):
     assert (tmp_path / "bunny_octree.png").exists()
     assert cli.main(["--out", str(tmp_path / "b"), "render", "--methods", "kdtree", bunny, "--size", "24", "16"]) == 0
     assert (tmp_path / "b" / "bunny_kdtree.png").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# PLY triangle strips, OFF, SU2: the files users meet that VTK 9.1 or meshio misread or refuse
+# ---------------------------------------------------------------------------------------------
+def strip_grid(nx, ny):
+    """Points of an nx x ny grid of unit squares in z = 0, and its rows as triangle strips (one
+    list per row), every strip's first triangle counter-clockwise seen from +z."""
+    ii, jj = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="xy")
+    pts = np.column_stack([ii.ravel(), jj.ravel(), np.zeros(ii.size)]).astype(np.float64)
+    top = lambda j, i: (j + 1) * (nx + 1) + i  # noqa: E731
+    strips = [[v for i in range(nx + 1) for v in (top(j, i), j * (nx + 1) + i)] for j in range(ny)]
+    return pts, strips
+
+
+def triangle_normals_and_area(pd):
+    p, off, conn = arrays(pd)
+    assert np.all(np.diff(off) == 3)
+    t = p[conn.reshape(-1, 3)]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    return n, 0.5 * np.linalg.norm(n, axis=1).sum()
+
+
+def write_strips_ply(path, pts, records, binary):
+    head = (f"ply\nformat {'binary_little_endian' if binary else 'ascii'} 1.0\nelement vertex {len(pts)}\n"
+            "property float x\nproperty float y\nproperty float z\n"
+            f"element tristrips {len(records)}\nproperty list int int vertex_indices\nend_header\n").encode()
+    if binary:
+        body = pts.astype("<f4").tobytes() + b"".join(np.array([len(r)] + list(r), "<i4").tobytes() for r in records)
+    else:
+        body = ("".join(f"{x} {y} {z}\n" for x, y, z in pts)
+                + "".join(" ".join(map(str, [len(r)] + list(r))) + "\n" for r in records)).encode()
+    path.write_bytes(head + body)
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_triangle_strips_are_read_as_triangles(tmp_path, binary):
+    """A 5 x 3 grid of unit squares as strips: one record per row, then the same rows joined into
+    one record with -1 between strips: 30 triangles, all facing +z, of total area 15."""
+    pts, strips = strip_grid(5, 3)
+    for records in (strips, [sum(([-1] + s for s in strips[1:]), strips[0])]):
+        path = tmp_path / "strips.ply"
+        write_strips_ply(path, pts, records, binary)
+        pd = read_ply(str(path))
+        normals, area = triangle_normals_and_area(pd)
+        assert pd.GetNumberOfPolys() == 30
+        assert area == pytest.approx(15.0)
+        assert np.all(normals[:, 2] > 0) and np.allclose(normals[:, :2], 0)
+        mesh = matrixtree.read_mesh(str(path))  # the public reader: no more "holds no polygons"
+        assert mesh.GetNumberOfPolys() == 30
+
+
+def test_ply_strips_equal_vtks_strip_decomposition(tmp_path):
+    """Strips joined by repeated vertices (degenerate triangles), as stripifiers write them: the
+    triangles equal vtkTriangleFilter's decomposition of the same strips, less its triangles that
+    repeat a vertex."""
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+    from vtkmodules.vtkFiltersCore import vtkTriangleFilter
+
+    pts, strips = strip_grid(4, 2)
+    joined = strips[0] + [strips[0][-1], strips[1][0]] + strips[1]
+    path = tmp_path / "joined.ply"
+    write_strips_ply(path, pts, [joined], binary=False)
+    ca = vtkCellArray()
+    ca.InsertNextCell(len(joined), joined)
+    src = vtkPolyData()
+    src.SetPoints(read_ply(str(path)).GetPoints())
+    src.SetStrips(ca)
+    tf = vtkTriangleFilter()
+    tf.SetInputData(src)
+    tf.Update()
+    want = arrays(tf.GetOutput())[2].reshape(-1, 3)
+    want = want[(want[:, 0] != want[:, 1]) & (want[:, 1] != want[:, 2]) & (want[:, 0] != want[:, 2])]
+    got = arrays(read_ply(str(path)))[2].reshape(-1, 3)
+    np.testing.assert_array_equal(got, want)
+    assert len(got) == 16
+
+
+def test_ply_strip_index_out_of_range_is_an_error(tmp_path):
+    path = tmp_path / "bad.ply"
+    write_strips_ply(path, np.eye(3), [[0, 1, 2, 7]], binary=False)
+    with pytest.raises(ValueError, match=r"bad.ply: tristrips record 0 refers to vertex 7.0, but the file has 3"):
+        read_ply(str(path))
+
+
+def off_text(pd, key="OFF", comments=True, counts_on_header=False, newline="\n"):
+    """``pd`` (points, polygons) as OFF text with header ``key``, the extra per-vertex values the
+    key announces (ST: texture, C: colour, N: normal), a colour after every face, comments."""
+    p, off, conn = arrays(pd)
+    faces = np.split(conn, off[1:-1])
+    head = f"{key} {len(p)} {len(faces)} 0" if counts_on_header else f"{key}\n# counts follow\n{len(p)} {len(faces)} 0"
+    lines = ["# written by the test", head] if comments else [head]
+    for x, y, z in p:
+        extra = (" 0 0 1" if "N" in key else "") + (" 0.5 0.5 0.5 1" if "C" in key else "") + \
+            (" 0.25 0.75" if key.startswith("ST") else "")
+        lines.append(f"{x!r} {y!r} {z!r}{extra}" + ("  # a vertex" if comments else ""))
+    lines += [f"{len(f)} " + " ".join(map(str, f)) + " 255 0 0" for f in faces]
+    return newline.join(lines) + newline
+
+
+@pytest.mark.parametrize("key", ["OFF", "COFF", "NOFF", "CNOFF", "STOFF", "STCNOFF"])
+@pytest.mark.parametrize("newline", ["\n", "\r\n"])
+def test_off_reader_reads_the_written_polygons(tmp_path, key, newline):
+    from matrixtree._readers import read_off
+
+    src = mixed_polygons()
+    path = tmp_path / "m.off"
+    path.write_bytes(off_text(src, key, newline=newline).encode())
+    for a, b in zip(arrays(read_off(str(path))), arrays(src)):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_off_with_counts_on_the_header_line_and_n_dimension(tmp_path):
+    from matrixtree._readers import read_off
+
+    src = pv.Sphere(theta_resolution=6, phi_resolution=5)
+    (tmp_path / "a.off").write_text(off_text(src, counts_on_header=True, comments=False))
+    text = off_text(src, comments=False).replace("OFF\n", "nOFF\n3\n", 1)
+    (tmp_path / "b.off").write_text(text)
+    for name in ("a.off", "b.off"):
+        for a, b in zip(arrays(read_off(str(tmp_path / name))), arrays(src)):
+            np.testing.assert_array_equal(a, b)
+    mesh = matrixtree.read_mesh(str(tmp_path / "a.off"))  # the public reader, triangulated
+    assert mesh.GetNumberOfPolys() == src.triangulate().n_cells
+
+
+#: a damaged OFF file's text -> the error's words
+BAD_OFF = {
+    "binary": ("OFF BINARY\n", r"binary OFF is not supported"),
+    "4-D": ("4OFF\n1 0 0\n0 0 0 1\n", r"4-D vertices"),
+    "n-D": ("nOFF\n4\n1 0 0\n0 0 0 0\n", r"dimension '4'"),
+    "not OFF": ("PLY\n", r"not an OFF file"),
+    "truncated": ("OFF\n3 1\n0 0 0\n1 0 0\n", r"declares 3 vertices and 1 faces, but only 2 data lines follow"),
+    "bad index": ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", r"line 6: face 0 refers to vertex 3, but the file has 3"),
+    "bad number": ("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", r"line 4: a vertex needs three numbers"),
+    "short face": ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n", r"line 6: the face lists 4 vertices but holds 3"),
+    "bad counts": ("OFF\nthree 1 0\n", r"line 2: expected the counts"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_OFF))
+def test_bad_off_files_are_errors_naming_the_line(tmp_path, case):
+    text, match = BAD_OFF[case]
+    path = tmp_path / "bad.off"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match) as e:
+        matrixtree.read_mesh(str(path))
+    assert str(path) in str(e.value)
+
+
+def su2_text(grid, newline="\n", zones=None):
+    """``grid`` (a pyvista UnstructuredGrid of linear cells) in SU2's native format, with its
+    surface as one marker; ``zones``: several such grids as one multi-zone file."""
+    def zone(g):
+        p = np.asarray(g.points)
+        lines = ["NDIME= 3", f"NELEM= {g.n_cells}"]
+        for k in range(g.n_cells):
+            cell = g.get_cell(k)
+            lines.append(f"{int(cell.type)} " + " ".join(map(str, cell.point_ids)) + f" {k}")
+        lines.append(f"NPOIN= {len(p)}")
+        lines += [f"{x!r} {y!r} {z!r} {k}" for k, (x, y, z) in enumerate(p)]
+        surf = g.extract_surface(pass_pointid=True)
+        ids = np.asarray(surf.point_data["vtkOriginalPointIds"])
+        faces = surf.irregular_faces
+        lines += ["NMARK= 1", "MARKER_TAG= wall", f"MARKER_ELEMS= {len(faces)}"]
+        lines += [f"{5 if len(f) == 3 else 9} " + " ".join(str(ids[i]) for i in f) for f in faces]
+        return lines
+
+    if zones is None:
+        lines = ["% a test grid"] + zone(grid)
+    else:
+        lines = [f"NZONE= {len(zones)}"]
+        for k, g in enumerate(zones, start=1):
+            lines += [f"IZONE= {k}"] + zone(g)
+    return newline.join(lines) + newline
+
+
+def small_grid(shift=0.0):
+    """A 2 x 2 x 1 box of hexahedra with two wedges on one of them (22 points, 6 cells)."""
+    x, y, z = np.meshgrid([0.0, 1, 2], [0.0, 1, 2], [0.0, 1], indexing="ij")
+    lattice = np.column_stack([x.ravel(order="F"), y.ravel(order="F"), z.ravel(order="F")])  # id = i + 3j + 9k
+    top = np.array([[0, 0, 2], [1, 0, 2], [0, 1, 2], [1, 1, 2]], float)  # ids 18..21
+
+    def at(i, j, k):
+        return i + 3 * j + 9 * k
+
+    hexes = [[at(i, j, 0), at(i + 1, j, 0), at(i + 1, j + 1, 0), at(i, j + 1, 0),
+              at(i, j, 1), at(i + 1, j, 1), at(i + 1, j + 1, 1), at(i, j + 1, 1)] for j in range(2) for i in range(2)]
+    wedges = [[at(0, 0, 1), at(1, 0, 1), at(0, 1, 1), 18, 19, 20], [at(1, 0, 1), at(1, 1, 1), at(0, 1, 1), 19, 21, 20]]
+    g = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: np.array(hexes), pv.CellType.WEDGE: np.array(wedges)},
+                            np.vstack([lattice, top]))
+    g.points += np.array([shift, 0.0, 0.0])
+    return g
+
+
+def grid_arrays(g):
+    return [vtk_to_numpy(a) for a in (g.GetPoints().GetData(), g.GetCells().GetOffsetsArray(),
+                                      g.GetCells().GetConnectivityArray(), g.GetCellTypesArray())]
+
+
+def meshio_grid(path, volume_only=True):
+    from matrixtree.grids import read_grid_here
+
+    return read_grid_here(str(path), "1" if volume_only else "0")  # meshio's SU2 reader
+
+
+SHARED_SU2 = sorted(glob.glob(os.path.join(DATA, "cfd", "*.su2")))
+
+
+@pytest.mark.parametrize("path", SHARED_SU2, ids=os.path.basename)
+def test_su2_reader_equals_meshio_on_the_shared_grids(path):
+    """The same points and cells; with the markers' faces (volume_only=False) meshio groups the
+    cells by type, so the cells are compared as sorted (type, point ids) rows."""
+    ours = matrixtree.read_grid(path)
+    assert ours.GetNumberOfCells() > 10000
+    for a, b in zip(grid_arrays(ours), grid_arrays(meshio_grid(path))):
+        np.testing.assert_array_equal(a, b)
+
+    def sorted_cells(g):
+        _, off, conn, types = grid_arrays(g)
+        return sorted((int(t), tuple(c)) for t, c in zip(types, np.split(conn, off[1:-1])))
+
+    ours = matrixtree.read_grid(path, volume_only=False)
+    assert ours.GetNumberOfCells() > ours.GetNumberOfPoints() // 10 + 10000
+    assert sorted_cells(ours) == sorted_cells(meshio_grid(path, volume_only=False))
+
+
+@pytest.mark.parametrize("newline", ["\r\n", "\r"])
+def test_su2_with_crlf_or_cr_line_ends_reads_as_with_lf(tmp_path, newline):
+    g = small_grid()
+    (tmp_path / "lf.su2").write_bytes(su2_text(g).encode())
+    (tmp_path / "crlf.su2").write_bytes(su2_text(g, newline).encode())
+    want = grid_arrays(meshio_grid(tmp_path / "lf.su2"))
+    assert want[3].tolist().count(12) == 4 and 13 in want[3]
+    for a, b in zip(grid_arrays(matrixtree.read_grid(str(tmp_path / "crlf.su2"))), want):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_two_zone_su2_keeps_each_zone_on_its_own_points(tmp_path):
+    """Zone 2 is zone 1 moved by +10 in x; both number their points from 0. Every cell of the
+    merged grid must lie in its own zone's box, and zone=k must equal zone k read alone."""
+    z1, z2 = small_grid(), small_grid(10.0)
+    path = tmp_path / "two.su2"
+    path.write_text(su2_text(None, zones=[z1, z2]))
+    g = pv.wrap(matrixtree.read_grid(str(path)))
+    assert g.n_points == z1.n_points + z2.n_points and g.n_cells == z1.n_cells + z2.n_cells
+    zone = np.asarray(g.cell_data["zone"])
+    centers = np.asarray(g.cell_centers().points)
+    np.testing.assert_array_equal(zone, np.repeat([1, 2], [z1.n_cells, z2.n_cells]))
+    assert np.all(centers[zone == 1, 0] < 2) and np.all(centers[zone == 2, 0] > 10)
+    np.testing.assert_allclose(g.volume, z1.volume + z2.volume)
+    for k, z in ((1, z1), (2, z2)):
+        (tmp_path / f"z{k}.su2").write_text(su2_text(z))
+        for a, b in zip(grid_arrays(matrixtree.read_grid(str(path), zone=k)),
+                        grid_arrays(matrixtree.read_grid(str(tmp_path / f"z{k}.su2")))):
+            np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match=r"two.su2: zone=3, but the file's zones are \[1, 2\]"):
+        matrixtree.read_grid(str(path), zone=3)
+
+
+@pytest.mark.parametrize("edit,match", [
+    (lambda t: t.replace("\n12 ", "\n112 ", 1), r"line 3: element type 112 is a degree-2 hexahedron of SU2's high-order"),
+    (lambda t: t.replace("\n12 ", "\n24 ", 1), r"line 3: unknown SU2 element type 24"),
+    (lambda t: t.replace("NELEM= 6", "NELEM= 7"), r"NELEM= declares 7 elements, but only 6 element lines follow"),
+    (lambda t: t.replace("NELEM= 6", "NELEM= 5"), r"line 8: a data line where a keyword"),
+    (lambda t: t.replace("\n12 0 1 4 3", "\n12 0 1 4 99", 1), r"element 0 of the section at line 2 refers to point 99"),
+    (lambda t: t.replace("NDIME= 3", "NDIME= 4"), r"line 1: NDIME= 4"),
+    (lambda t: t.replace("NPOIN= ", "NPOIN= x"), r"NPOIN= needs a count"),
+    (lambda t: t.replace("\n0.0 0.0 0.0 0", "\n0.0 zero 0.0 0", 1), r"a point needs 3 coordinates"),
+])
+def test_bad_su2_files_are_errors_naming_the_line(tmp_path, edit, match):
+    text = su2_text(small_grid()).replace("% a test grid\n", "")
+    path = tmp_path / "bad.su2"
+    path.write_text(edit(text))
+    assert edit(text) != text
+    with pytest.raises(ValueError, match=match) as e:
+        matrixtree.read_grid(str(path))
+    assert str(path) in str(e.value)
+
+
+def test_cli_locates_in_one_zone_of_a_two_zone_su2(tmp_path, capsys):
+    path = tmp_path / "two.su2"
+    path.write_text(su2_text(None, zones=[small_grid(), small_grid(10.0)]))
+    np.save(tmp_path / "p.npy", np.array([[0.5, 0.5, 0.5], [10.5, 0.5, 0.5]]))
+    for zone, inside in (("1", [True, False]), ("2", [False, True])):
+        out = tmp_path / f"z{zone}"
+        assert cli.main(["locate", str(path), str(tmp_path / "p.npy"), "--zone", zone, "--out", str(out)]) == 0
+        assert ((np.load(out / "p_cells.npy") >= 0) == inside).all()
