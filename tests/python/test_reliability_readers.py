@@ -520,4 +520,4 @@ def test_cli_locates_in_one_zone_of_a_two_zone_su2(tmp_path, capsys):
     for zone, inside in (("1", [True, False]), ("2", [False, True])):
         out = tmp_path / f"z{zone}"
         assert cli.main(["locate", str(path), str(tmp_path / "p.npy"), "--zone", zone, "--out", str(out)]) == 0
-        assert ((np.load(out / "p_cells.npy") >= 0) == inside).all()
+        assert ((np.load(out / "p_located.npz")["cell_ids"] >= 0) == inside).all()
