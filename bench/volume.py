@@ -402,7 +402,8 @@ def write_docs(md_path: str, rows: list, pictures: list, args, cmd: str) -> None
         f.write("# Volume ray casting: matrixtree vs vtkFixedPointVolumeRayCastMapper\n\n")
         f.write(f"Produced by `{cmd}` on {m['cores']} cores ({m['cpu']}), Python {m['python']}, "
                 f"{args.size[0]}x{args.size[1]} pixels. Both renderers run in one process with the same "
-                "transfer functions (`matrixtree.default_transfer_functions`), camera "
+                "transfer functions (`matrixtree.default_transfer_functions`; the phantoms: bench/ct_phantom.py's "
+                "CT preset), camera "
                 "(`matrixtree.frame_camera`), sample distance (half the smallest spacing), linear "
                 "interpolation, no shading, opacity unit distance = mean spacing; frames are interleaved "
                 f"(VTK, ours, VTK, ...), {args.frames} each, median reported. VTK renders off-screen "
