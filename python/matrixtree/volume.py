@@ -2,7 +2,8 @@
 
 The renderer stores only what a visible sample can read (Andrysco & Tricoche 2011, §3): 8/16-bit
 scalars (and float scalars holding only integers) as 8^3-cell bricks with a 1-voxel apron in their
-own width, other scalars as a block-sparse matrix of 8x8x8-voxel float blocks; it skips invisible
+own width, other floating-point scalars quantised into 16-bit bricks where the lookup table cannot
+resolve the step (else as a block-sparse matrix of 8x8x8-voxel float blocks); it skips invisible
 space through the matrix-tree levels above them. Rays are marched on the CPU (OpenMP) or, with
 ``backend="opencl"``, by OpenCL kernels over the same storage. This module converts and delegates.
 Where the VTK module does not import, ``render_volume`` is the engine extension's

@@ -4,7 +4,8 @@
 //
 //   BlockSparseVolume  the scalar field, block-sparse, in one of two layouts (VoxelStorage):
 //                      Float32: a BlockSparseMatrix<float> of DIM^3-voxel blocks (any input type);
-//                      UInt8/UInt16 (8/16-bit integer input, the default for it): bricks of DIM^3
+//                      UInt8/UInt16 (8/16-bit integer input, the default for it; floating-point
+//                      input holding integers, or quantised: VolumeBuildOptions): bricks of DIM^3
 //                      cells stored as (DIM+1)^3 voxels in the input's width, i.e. with a 1-voxel
 //                      apron towards +x/+y/+z, so all 8 corners of every cell of a brick are in
 //                      the brick (no neighbour lookup per sample); signed input is offset.
