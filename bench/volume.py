@@ -14,6 +14,15 @@ sample distance. VTK renders off-screen, so run it under a display, e.g.
 ``--md`` writes the tables as markdown and its two pictures into ``images/`` beside it.
 
 ``--backend all`` adds our OpenCL backend (row ``matrixtree-opencl``, with ``max_diff_vs_cpu``).
+
+Frames after the first: ``first_ms`` is each renderer's first frame (ours: classification and
+storage included), ``camera_ms`` the median frame after a camera move (azimuth +/-10 degrees,
+alternating), ``tf_ms`` the median frame after an opacity-function change (its ramp start moved
+by 2% of the range, alternating: ours reclassifies). Volumes generated at bench time:
+``--phantom N`` (repeatable) adds bench/ct_phantom.py's CT-like torso at N^3 as float32 (noisy
+Hounsfield units: quantised into 16-bit bricks) and as uint16; ``--upsample K`` adds headsq
+upsampled K times per axis (trilinear); ``--large`` is ``--phantom 512 --upsample 6`` (a few
+minutes more). Generated volumes get no speed/accuracy curve.
 """
 
 from __future__ import annotations
@@ -28,6 +37,7 @@ import time
 import numpy as np
 
 from _common import ROOT, machine, markdown, table, write_json
+from ct_phantom import ct_phantom, ct_transfer_functions, to_image
 
 import matrixtree  # noqa: E402  (path set by _common)
 from matrixtree import scenes  # noqa: E402
@@ -109,6 +119,7 @@ class Vtk:
         prop.SetScalarOpacityUnitDistance(unit)
         prop.SetInterpolationTypeToLinear()
         prop.ShadeOff()
+        self.prop = prop
         vol = vtkVolume()
         vol.SetMapper(self.mapper)
         vol.SetProperty(prop)
@@ -137,26 +148,72 @@ class Vtk:
         return ms, np.concatenate([a / 255.0, np.ones(a.shape[:2] + (1,))], axis=2)
 
 
+# ------------------------------------------------------------------------------------ volumes
+def upsampled(image, k: int):
+    """`image` resampled trilinearly to k times as many points per axis (spacing / k)."""
+    from vtkmodules.vtkImagingCore import vtkImageResize
+
+    r = vtkImageResize()
+    r.SetInputData(image)
+    r.SetResizeMethodToMagnificationFactors()
+    r.SetMagnificationFactors(k, k, k)
+    r.InterpolateOn()
+    r.Update()
+    out = r.GetOutput()
+    out.SetExtent(0, out.GetDimensions()[0] - 1, 0, out.GetDimensions()[1] - 1, 0, out.GetDimensions()[2] - 1)
+    return out
+
+
+def volumes(args) -> list:
+    """(name, loader, transfer functions or None for the default ones) per volume to bench: the
+    files, the phantoms (with a CT preset), the upsampled CT."""
+    out = []
+    for p in args.paths:
+        out.append((os.path.basename(p).split(".")[0], lambda p=p: read_volume(p), None))
+    for n in args.phantom:
+        for dt in ("float32", "uint16"):
+            out.append((f"phantom{n}-{dt}", lambda n=n, dt=dt: to_image(ct_phantom(n, dt)),
+                        lambda dt=dt: ct_transfer_functions(dt)))
+    if args.upsample:
+        head = os.path.join(scenes.data_dir(), "volumes", "headsq.mhd")
+        out.append((f"headsq-x{args.upsample}", lambda: upsampled(read_volume(head), args.upsample), None))
+    return out
+
+
+def opacity_shifted(otf, lo: float, hi: float, frac: float):
+    """A copy of `otf` with its points above the lowest moved by frac * (hi - lo)."""
+    from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction
+
+    out = vtkPiecewiseFunction()
+    for i in range(otf.GetSize()):
+        node = [0.0] * 4
+        otf.GetNodeValue(i, node)
+        out.AddPoint(node[0] + (frac * (hi - lo) if 0 < i < otf.GetSize() - 1 else 0.0), node[1])
+    return out
+
+
 # -------------------------------------------------------------------------------------- main
-def bench_volume(path: str, size, frames: int, threads: int, backend: str = "cpu") -> tuple[list, dict]:
-    name = os.path.basename(path).split(".")[0]
-    image = read_volume(path)
+def bench_volume(name: str, image, size, frames: int, threads: int, backend: str = "cpu",
+                 curve_points=CURVE, transfer=None) -> tuple[list, dict]:
     sp = np.abs(np.array(image.GetSpacing()))
     unit = float(sp.mean())
     sd = 0.5 * float(sp.min())  # matched sample distance: half the smallest spacing
-    ctf, otf = default_transfer_functions(image)
+    ctf, otf = transfer() if transfer else default_transfer_functions(image)
     cam = frame_camera(image)
     ours, vtk = Ours(image, ctf, otf, unit, size, cam), Vtk(image, ctf, otf, unit, size, cam, sd)
     ours.c.SetNumberOfThreads(threads)
-
-    ref_ms, ref = ours.frame(SampleDistance=float(sp.min()) / 16, DoublePrecision=True,
-                             EarlyTerminationThreshold=1.0)
     c = ours.c
+    matched = dict(SampleDistance=sd, DoublePrecision=False, EarlyTerminationThreshold=0.99)
+    # First frames: ours classifies and stores the volume, VTK builds its min/max volume and tables.
+    first_ours, _ = ours.frame(**matched)
+    first_vtk, _ = vtk.frame()
     bytes_info = dict(blocks_allocated=c.GetNumberOfAllocatedBlocks(), blocks_dense=c.GetNumberOfDenseBlocks(),
                       bytes=c.GetAllocatedBytes(), visible_block_bytes=c.GetVisibleBlockBytes(),
-                      dense_bytes=c.GetDenseBytes(), build_ms=c.GetLastBuildTime())
-    matched = dict(SampleDistance=sd, DoublePrecision=False, EarlyTerminationThreshold=0.99)
-    vtk.frame()  # warm-up: VTK builds its min/max volume and tables on the first render
+                      dense_bytes=c.GetDenseBytes(), build_ms=c.GetLastBuildTime(),
+                      quantization_step=c.GetQuantizationStep())
+    ref_ms, ref = ours.frame(SampleDistance=float(sp.min()) / 16, DoublePrecision=True,
+                             EarlyTerminationThreshold=1.0)
+    vtk.frame()
     ours.frame(**matched)
     dev = None
     if backend != "cpu":
@@ -192,18 +249,67 @@ def bench_volume(path: str, size, frames: int, threads: int, backend: str = "cpu
         c_ours.append(ours.cpu_ms)
     vtk.mapper.SetNumberOfThreads(vtk_threads)
     ours.c.SetNumberOfThreads(threads)
+    # Frames after the first: a camera move (no reclassification), an opacity change (ours
+    # reclassifies); all threads, interleaved, alternating between two cameras / two functions.
+    from vtkmodules.vtkRenderingCore import vtkCamera
+
+    cams = []
+    for a in (10.0, -10.0):
+        cm = vtkCamera()
+        cm.DeepCopy(cam)
+        cm.Azimuth(a)
+        cams.append(cm)
+    rng = image.GetPointData().GetScalars().GetRange()
+    otfs = [opacity_shifted(otf, rng[0], rng[1], f) for f in (0.02, 0.0)]
+
+    def alternating(change) -> tuple[float, float, list]:
+        """Median VTK and our frame times, interleaved, with change(i % 2) before frame i; and
+        whether each of our frames reclassified."""
+        t_vtk, t_ours, rebuilt = [], [], []
+        for i in range(frames):
+            change(i % 2)
+            t_vtk.append(vtk.frame()[0])
+            t_ours.append(ours.frame(**matched)[0])
+            rebuilt.append(c.GetLastRebuilt())
+        return statistics.median(t_vtk), statistics.median(t_ours), rebuilt
+
+    def set_camera(i: int) -> None:
+        c.SetCamera(cams[i])
+        vtk.ren.SetActiveCamera(cams[i])
+
+    def set_opacity(i: int) -> None:
+        c.SetScalarOpacity(otfs[i])
+        vtk.prop.SetScalarOpacity(otfs[i])
+
+    *camera_ms, rebuilt = alternating(set_camera)
+    if any(rebuilt):
+        raise RuntimeError("a camera move reclassified the volume")
+    c.SetCamera(cam)
+    vtk.ren.SetActiveCamera(cam)
+    *tf_ms, rebuilt = alternating(set_opacity)
+    if not all(rebuilt):
+        raise RuntimeError("an opacity change should reclassify the volume")
+    c.SetScalarOpacity(otf)
+    vtk.prop.SetScalarOpacity(otf)
+    later = dict(first_ms=(first_vtk, first_ours), camera_ms=tuple(camera_ms), tf_ms=tuple(tf_ms))
     dims = "x".join(str(d) for d in image.GetDimensions())
     base = dict(volume=name, dims=dims, width=size[0], height=size[1], sample_distance=sd)
     rows = []
     ms_vtk, ms_ours = statistics.median(t_vtk), statistics.median(t_ours)
     cpu_vtk, cpu_ours = statistics.median(c_vtk), statistics.median(c_ours)
-    rows.append(dict(base, renderer="vtkFixedPointVolumeRayCastMapper", ms=ms_vtk, speedup=1.0,
+    frames_vtk = {k: v[0] for k, v in later.items()}
+    frames_ours = dict({k: v[1] for k, v in later.items()},
+                       **{k.replace("_ms", "_speedup"): v[0] / v[1] for k, v in later.items()})
+    visible_voxels = max(1, bytes_info["blocks_allocated"]) * 512
+    rows.append(dict(base, renderer="vtkFixedPointVolumeRayCastMapper", ms=ms_vtk, speedup=1.0, **frames_vtk,
                      cpu_ms_1t=cpu_vtk, cpu_speedup_1t=1.0, storage=image.GetPointData().GetScalars().GetDataTypeAsString(),
                      ssim_vs_vtk=1.0, psnr_vs_vtk=None, psnr_vs_reference=psnr(img_vtk, ref),
                      blocks_allocated=bytes_info["blocks_dense"], blocks_dense=bytes_info["blocks_dense"],
                      bytes=int(image.GetPointData().GetScalars().GetDataSize() *
                                image.GetPointData().GetScalars().GetDataTypeSize())))
-    rows.append(dict(base, renderer="matrixtree", ms=ms_ours, speedup=ms_vtk / ms_ours,
+    rows.append(dict(base, renderer="matrixtree", ms=ms_ours, speedup=ms_vtk / ms_ours, **frames_ours,
+                     bytes_per_visible_voxel=bytes_info["bytes"] / visible_voxels,
+                     quantization_step=bytes_info["quantization_step"],
                      cpu_ms_1t=cpu_ours, cpu_speedup_1t=cpu_vtk / cpu_ours,
                      storage=("float32", "uint8", "uint16")[c.GetVoxelStorage()],
                      ssim_vs_vtk=ssim(img_ours, img_vtk), psnr_vs_vtk=psnr(img_ours, img_vtk),
@@ -221,7 +327,7 @@ def bench_volume(path: str, size, frames: int, threads: int, backend: str = "cpu
                          blocks_allocated=bytes_info["blocks_allocated"], blocks_dense=bytes_info["blocks_dense"],
                          bytes=bytes_info["bytes"]))
     curve = []
-    for f in CURVE:
+    for f in curve_points:
         times = []
         for _ in range(max(1, frames // 2)):
             ms, img = ours.frame(SampleDistance=f * float(sp.min()))
@@ -280,19 +386,24 @@ def write_docs(md_path: str, rows: list, pictures: list, args, cmd: str) -> None
         cols.append("max_diff_vs_cpu")
     curve = [r for r in rows if r["renderer"] == "matrixtree-curve"]
     ccols = ["volume", "sample_distance_voxels", "ms", "psnr_vs_reference", "ssim_vs_vtk"]
-    mem = [dict(volume=r["volume"], storage=r["storage"], blocks_allocated=r["blocks_allocated"],
-                blocks_dense=r["blocks_dense"],
+    mem = [dict(volume=r["volume"], storage=r["storage"], quantization_step=r["quantization_step"],
+                blocks_allocated=r["blocks_allocated"], blocks_dense=r["blocks_dense"],
                 visible_block_bytes=r["visible_block_bytes"], bytes=r["bytes"], dense_bytes=r["dense_bytes"],
+                bytes_per_visible_voxel=r["bytes_per_visible_voxel"],
                 overhead_vs_visible=r["bytes"] / max(1, r["visible_block_bytes"]) - 1, build_ms=r["build_ms"])
            for r in rows if r["renderer"] == "matrixtree"]
-    mcols = ["volume", "storage", "blocks_allocated", "blocks_dense", "visible_block_bytes", "bytes", "dense_bytes",
-             "overhead_vs_visible", "build_ms"]
+    mcols = ["volume", "storage", "quantization_step", "blocks_allocated", "blocks_dense", "visible_block_bytes",
+             "bytes", "dense_bytes", "bytes_per_visible_voxel", "overhead_vs_visible", "build_ms"]
+    later = [r for r in rows if r["renderer"] in ("vtkFixedPointVolumeRayCastMapper", "matrixtree")]
+    lcols = ["volume", "dims", "renderer", "first_ms", "first_speedup", "ms", "camera_ms", "camera_speedup", "tf_ms",
+             "tf_speedup"]
     m = machine()
     with open(md_path, "w") as f:
         f.write("# Volume ray casting: matrixtree vs vtkFixedPointVolumeRayCastMapper\n\n")
         f.write(f"Produced by `{cmd}` on {m['cores']} cores ({m['cpu']}), Python {m['python']}, "
                 f"{args.size[0]}x{args.size[1]} pixels. Both renderers run in one process with the same "
-                "transfer functions (`matrixtree.default_transfer_functions`), camera "
+                "transfer functions (`matrixtree.default_transfer_functions`; the phantoms: bench/ct_phantom.py's "
+                "CT preset), camera "
                 "(`matrixtree.frame_camera`), sample distance (half the smallest spacing), linear "
                 "interpolation, no shading, opacity unit distance = mean spacing; frames are interleaved "
                 f"(VTK, ours, VTK, ...), {args.frames} each, median reported. VTK renders off-screen "
@@ -318,6 +429,13 @@ def write_docs(md_path: str, rows: list, pictures: list, args, cmd: str) -> None
                 "are 4 consecutive bytes), their pointers and 512-bit visible-cell masks, the ranges "
                 "and the levels. `dense_bytes`: all voxels as float.\n\n")
         f.write(markdown(mem, mcols) + "\n\n")
+        f.write("## Frames after the first\n\n`first_ms`: the first frame (ours: classification and storage "
+                "included; VTK: its min/max volume and tables); `ms`: the matched frame above; `camera_ms`: the "
+                "median frame after a camera move (azimuth +/-10 degrees, alternating; ours does not reclassify); "
+                "`tf_ms`: the median frame after an opacity change (ramp start moved by 2% of the range, "
+                "alternating; ours reclassifies the volume). `*_speedup` = VTK ms / our ms. Wall clock, all "
+                "threads.\n\n")
+        f.write(markdown(later, lcols) + "\n\n")
         f.write("## Speed/accuracy curve (ours)\n\nSample distance in units of the smallest spacing.\n\n")
         f.write(markdown(curve, ccols) + "\n")
     print(f"wrote {md_path}, {chart}, {pics}")
@@ -336,18 +454,35 @@ def main() -> int:
                     "image: max_diff_vs_cpu). The CPU rows stay in both: they are the device's reference")
     ap.add_argument("--json", default=os.path.join(ROOT, "out", "volume.json"))
     ap.add_argument("--md", default=None, help="write the markdown report (and its pictures in images/ beside it)")
+    ap.add_argument("--phantom", type=int, action="append", default=[],
+                    help="add bench/ct_phantom.py's CT-like volume at N^3 points, float32 and uint16 (repeatable; "
+                    "default: 128 unless --volume is given)")
+    ap.add_argument("--upsample", type=int, default=0, help="add headsq upsampled K times per axis")
+    ap.add_argument("--large", action="store_true", help="add --phantom 512 --upsample 6")
+    ap.add_argument("--no-files", action="store_true", help="only the generated volumes")
     args = ap.parse_args()
-    paths = args.volume or sorted(p for p in glob.glob(os.path.join(scenes.data_dir(), "volumes", "*"))
-                                  if not p.endswith(".raw"))
+    args.paths = [] if args.no_files else (
+        args.volume or sorted(p for p in glob.glob(os.path.join(scenes.data_dir(), "volumes", "*"))
+                              if not p.endswith(".raw")))
+    if not args.phantom and not args.volume:
+        args.phantom = [128]
+    if args.large:
+        args.phantom = sorted(set(args.phantom) | {512})
+        args.upsample = args.upsample or 6
     rows, pictures = [], []
-    for p in paths:
-        print(f"[volume] {os.path.basename(p)}", flush=True)
-        r, pic = bench_volume(p, tuple(args.size), args.frames, args.threads, args.backend)
+    for name, load, transfer in volumes(args):
+        print(f"[volume] {name}", flush=True)
+        image = load()
+        small = name in [os.path.basename(p).split(".")[0] for p in args.paths] or image.GetNumberOfPoints() < 256 ** 3
+        r, pic = bench_volume(name, image, tuple(args.size), args.frames, args.threads, args.backend,
+                              CURVE if small else (), transfer)
+        del image
         rows += r
         pictures.append(pic)
         print(table([x for x in r if x["renderer"] != "matrixtree-curve"],
                     ["volume", "renderer", "ms", "speedup", "cpu_ms_1t", "cpu_speedup_1t", "ssim_vs_vtk",
-                     "psnr_vs_reference", "storage", "bytes"] + (["max_diff_vs_cpu"] if args.backend != "cpu" else [])),
+                     "psnr_vs_reference", "first_ms", "camera_ms", "tf_ms", "storage", "bytes"] +
+                    (["max_diff_vs_cpu"] if args.backend != "cpu" else [])),
               flush=True)
     print()
     print(table(rows, ["volume", "renderer", "sample_distance", "ms", "speedup", "ssim_vs_vtk", "psnr_vs_reference",

@@ -41,6 +41,7 @@ struct vtkMatrixTreeVolumeRayCasterInternals
   vtkPiecewiseFunction* Opacity = nullptr;
   int TableSize = 0;
   bool Dense = false;  // the classification's DenseStorage
+  bool Exact = false;  // the classification's ExactFloat
   vtkMatrixTreeVolumeTuning Tuning;
   double Range[2] = { 0, 1 };
   bool Force = false;
@@ -253,6 +254,10 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
   mtree::VolumeGeometry geo;
   input->GetSpacing(geo.spacing);
   input->GetOrigin(geo.origin);
+  // Point (i, j, k) of the scalars is structured point extent[0] + i, ... : its world position is
+  // origin + (extent start + index) * spacing, so the engine's origin is the first point's.
+  int extent[6];
+  input->GetExtent(extent);
   for (int a = 0; a < 3; ++a)
   {
     if (!(geo.spacing[a] != 0) || !std::isfinite(geo.spacing[a]))
@@ -260,6 +265,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       vtkErrorMacro("The input spacing must be finite and non-zero along every axis.");
       return 0;
     }
+    geo.origin[a] += extent[2 * a] * geo.spacing[a];
   }
   std::string invalid = vtkMatrixTreeChecks::VolumeSettings(scalars->GetNumberOfTuples(), dims, geo.spacing,
     this->SampleDistance, this->EarlyTerminationThreshold, this->ScalarOpacityUnitDistance);
@@ -276,7 +282,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
   vtkMatrixTreeVolumeRayCasterInternals& in = *this->Internals;
   const vtkMTimeType inputTime = std::max(input->GetMTime(), scalars->GetMTime());
   const bool rebuild = !in.Built || in.Force || in.Scalars != scalars || in.Opacity != this->ScalarOpacity ||
-    in.TableSize != this->TableSize || in.Dense != in.Tuning.DenseStorage || inputTime > in.BuildTime ||
+    in.TableSize != this->TableSize || in.Dense != in.Tuning.DenseStorage || in.Exact != in.Tuning.ExactFloat || inputTime > in.BuildTime ||
     (this->ScalarOpacity && this->ScalarOpacity->GetMTime() > in.BuildTime);
 
   // The lookup table spans the finite scalar range.
@@ -336,6 +342,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
     {
       mtree::VolumeBuildOptions bo;
       bo.sparse = !in.Tuning.DenseStorage;
+      bo.quantizeFloat = !in.Tuning.ExactFloat;
       bo.threads = this->NumberOfThreads;
       in.Built = false;
       switch (scalars->GetDataType())
@@ -349,6 +356,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       in.Opacity = this->ScalarOpacity;
       in.TableSize = this->TableSize;
       in.Dense = in.Tuning.DenseStorage;
+      in.Exact = in.Tuning.ExactFloat;
       in.BuildTime.Modified();
       in.CLUploaded = false;
       this->LastRebuilt = true;
@@ -364,6 +372,7 @@ int vtkMatrixTreeVolumeRayCaster::RequestData(
       this->DenseBytes = static_cast<vtkIdType>(s.denseBytes);
       this->NumberOfNonFiniteScalars = static_cast<vtkIdType>(s.nonFinite);
       this->VoxelStorage = static_cast<int>(s.storage);
+      this->QuantizationStep = in.Volume.quantizationStep();
     }
 
     mtree::VolumeCamera cam;
@@ -523,8 +532,9 @@ void vtkMatrixTreeVolumeRayCaster::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "NumberOfSkips: " << this->NumberOfSkips << "\n";
   os << indent << "NumberOfNonFiniteScalars: " << this->NumberOfNonFiniteScalars << "\n";
   os << indent << "VoxelStorage: " << this->VoxelStorage << "\n";
+  os << indent << "QuantizationStep: " << this->QuantizationStep << "\n";
   os << indent << "NumberOfOpenCLUploads: " << this->NumberOfOpenCLUploads << "\n";
   const vtkMatrixTreeVolumeTuning& t = this->Internals->Tuning;
   os << indent << "Tuning: EmptySpaceSkipping " << t.EmptySpaceSkipping << ", DenseStorage " << t.DenseStorage
-     << ", Vectorized " << t.Vectorized << "\n";
+     << ", Vectorized " << t.Vectorized << ", ExactFloat " << t.ExactFloat << "\n";
 }

@@ -7,7 +7,11 @@
  * function into an RGBA image seen from a camera. It is the volume-rendering use of the paper's
  * block-sparse matrix (Andrysco & Tricoche 2011, §3): the scalars are stored in 8^3-voxel
  * float blocks, or for 8/16-bit (and integer-valued float) scalars in 8^3-cell bricks with a
- * 1-voxel apron in their own width, and only what a visible sample can read is allocated (a cell is visible when
+ * 1-voxel apron in their own width; other floating-point scalars are quantised into 16-bit bricks
+ * (65535 steps over their range) where the lookup table is at least 16 times coarser than a step
+ * (TableSize <= 4096: a sample moves by at most 1/32 of a table entry; the error bound is in
+ * engine/include/mtree/volume/volume.h, VolumeBuildOptions::quantizeFloat, and GetQuantizationStep
+ * reports the step), else kept in float blocks. Only what a visible sample can read is allocated (a cell is visible when
  * the opacity function is non-zero somewhere on its corners' value range); above the blocks, the
  * matrix-tree levels mark which bricks and groups of bricks hold a visible cell, and each ray
  * skips invisible nodes top-down. Skipping is exact: a sample it passes over has opacity 0.
@@ -219,8 +223,12 @@ public:
   vtkGetMacro(NumberOfSkips, vtkIdType);
   vtkGetMacro(NumberOfNonFiniteScalars, vtkIdType);
   /// How the voxels are held: 0 float blocks, 1 8-bit and 2 16-bit bricks with a 1-voxel apron
-  /// (8/16-bit integer scalars, or float scalars that hold only integers: lossless).
+  /// (8/16-bit integer scalars, or float scalars that hold only integers: lossless; or
+  /// floating-point scalars quantised, see QuantizationStep).
   vtkGetMacro(VoxelStorage, int);
+  /// The quantisation step of floating-point scalars held in 16-bit bricks (their range / 65535),
+  /// 0 where the voxels hold the scalars exactly.
+  vtkGetMacro(QuantizationStep, double);
   /// Times the volume was copied to the OpenCL device (once per classification and device).
   vtkGetMacro(NumberOfOpenCLUploads, vtkIdType);
   ///@}
@@ -287,6 +295,7 @@ protected:
   vtkIdType NumberOfSkips = 0;
   vtkIdType NumberOfNonFiniteScalars = 0;
   int VoxelStorage = 0;
+  double QuantizationStep = 0;
   vtkIdType NumberOfOpenCLUploads = 0;
 
 private:

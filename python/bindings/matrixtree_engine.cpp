@@ -615,6 +615,7 @@ class Volume {
     d["dense_bytes"] = s.denseBytes;
     d["non_finite"] = s.nonFinite;
     d["storage"] = storage[static_cast<int>(s.storage)];
+    d["quantization_step"] = double(vol_.quantizationStep());
     return d;
   }
 

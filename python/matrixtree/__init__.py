@@ -27,7 +27,7 @@ from matrixtree import scenes
 from matrixtree.core import MatrixTree, read_mesh, render, save_heatmap, save_rgb, time_frames, tree_mesh
 from matrixtree.grids import read_grid
 from matrixtree.locator import CellLocator, cached_memory, release_cached_memory
-from matrixtree.volume import default_transfer_functions, frame_camera, read_volume, render_volume
+from matrixtree.volume import VolumeRenderer, default_transfer_functions, frame_camera, read_volume, render_volume
 from matrixtree import filters
 from matrixtree.filters import (find_cells_along_line, find_cells_within_bounds, find_closest_cell,
                                 find_containing_cell, multi_ray_trace, probe, ray_trace, sample)

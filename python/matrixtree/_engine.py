@@ -387,6 +387,72 @@ def transfer_table(scalars: np.ndarray, color, opacity):
     return np.ascontiguousarray(np.column_stack([rgb.reshape(-1, 3), alpha]), np.float32), lo, hi
 
 
+class VolumeRenderer:
+    """``matrixtree.volume.VolumeRenderer`` on the engine (same arguments and results): the engine
+    volume is kept across frames and built again when the scalars or a transfer function changed
+    (their modification times), or the colour one (the engine's table holds both)."""
+
+    def __init__(self, volume, *, color=None, opacity=None, spacing=None, origin=None,
+                 opacity_unit_distance: float | None = None, threads: int = 0, backend: str = "cpu",
+                 device: str | None = None):
+        from matrixtree.volume import _prepare_volume
+
+        if check_backend(backend) == "opencl":
+            raise _no_opencl("render_volume")
+        v = _prepare_volume(volume, color, opacity, spacing, origin, opacity_unit_distance, threads)
+        self.image, self.color, self.opacity = v.image, v.color, v.opacity
+        self.backend = backend
+        self._unit, self._threads = float(v.opacity_unit_distance), int(v.threads)
+        self._vol, self._key = None, None
+
+    def _volume(self) -> bool:
+        """Builds the engine volume if its inputs changed since the last build; True if it did."""
+        s = self.image.GetPointData().GetScalars()
+        key = (self.image.GetMTime(), s.GetMTime(), id(self.color), self.color.GetMTime(), id(self.opacity),
+               self.opacity.GetMTime())  # a new scalar array modifies the image
+        if key == self._key:
+            return False
+        scalars = np.ascontiguousarray(vtk_to_numpy(s))
+        table, lo, hi = transfer_table(scalars, self.color, self.opacity)
+        self._vol = engine().Volume(scalars, list(self.image.GetDimensions()), table, lo, hi,
+                                    unit_distance=self._unit, sparse=True, threads=self._threads)
+        self._key = key
+        return True
+
+    def render(self, *, camera=None, size=(512, 512), sample_distance: float | None = None,
+               image_sample_distance: float = 1.0, early_termination: float = 0.99, double_precision: bool = False,
+               shade: bool = False, return_stats: bool = False):
+        from matrixtree.volume import _prepare_frame
+
+        f = _prepare_frame(self.image, size, camera, sample_distance, image_sample_distance, early_termination)
+        rebuilt = self._volume()
+        cam, image = f.camera, self.image
+        # The first point's position: the origin moved by the extent's start (vtkImageData places
+        # point (i, j, k) of an extent starting at e at origin + (e + (i, j, k)) * spacing).
+        ext, sp = image.GetExtent(), image.GetSpacing()
+        first = [image.GetOrigin()[a] + ext[2 * a] * sp[a] for a in range(3)]
+        rgba, st = self._vol.render(f.width, f.height, position=list(cam.GetPosition()),
+                                    focal_point=list(cam.GetFocalPoint()), view_up=list(cam.GetViewUp()),
+                                    view_angle=cam.GetViewAngle(), parallel=bool(cam.GetParallelProjection()),
+                                    parallel_scale=cam.GetParallelScale(), origin=first, spacing=list(sp),
+                                    sample_distance=float(f.sample_distance),
+                                    image_sample_distance=float(f.image_sample_distance),
+                                    early_termination=float(f.early_termination),
+                                    double_precision=bool(double_precision), shade=bool(shade),
+                                    threads=self._threads)
+        img = np.ascontiguousarray(rgba[::-1])
+        if not return_stats:
+            return img
+        vs = self._vol.stats()
+        stats = {"render_ms": st["render_ms"], "build_ms": vs["build_ms"], "rebuilt": rebuilt,
+                 "samples": st["samples"], "skips": st["skips"], "blocks_allocated": vs["blocks_allocated"],
+                 "blocks_dense": vs["blocks_dense"], "bricks_visible": vs["bricks_visible"], "bricks": vs["bricks"],
+                 "levels": vs["levels"], "visible_block_bytes": vs["block_bytes"], "bytes": vs["bytes"],
+                 "dense_bytes": vs["dense_bytes"], "non_finite": vs["non_finite"], "storage": vs["storage"],
+                 "quantization_step": vs["quantization_step"], "backend": "cpu", "device": ""}
+        return img, stats
+
+
 def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=None, spacing=None, origin=None,
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
@@ -394,32 +460,10 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
                   device: str | None = None, return_stats: bool = False):
     """Ray cast a scalar volume: ``matrixtree.volume.render_volume`` on the engine (same
     arguments and results)."""
-    from matrixtree.volume import _prepare_volume_render
-
-    if check_backend(backend) == "opencl":
-        raise _no_opencl("render_volume")
-    v = _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
-                               opacity_unit_distance, image_sample_distance, early_termination, threads)
-    image, cam = v.image, v.camera
-    scalars = np.ascontiguousarray(vtk_to_numpy(image.GetPointData().GetScalars()))
-    table, lo, hi = transfer_table(scalars, v.color, v.opacity)
-    vol = engine().Volume(scalars, list(image.GetDimensions()), table, lo, hi,
-                          unit_distance=float(v.opacity_unit_distance), sparse=True, threads=int(v.threads))
-    rgba, st = vol.render(v.width, v.height, position=list(cam.GetPosition()), focal_point=list(cam.GetFocalPoint()),
-                          view_up=list(cam.GetViewUp()), view_angle=cam.GetViewAngle(),
-                          parallel=bool(cam.GetParallelProjection()), parallel_scale=cam.GetParallelScale(),
-                          origin=list(image.GetOrigin()), spacing=list(image.GetSpacing()),
-                          sample_distance=float(v.sample_distance),
-                          image_sample_distance=float(v.image_sample_distance),
-                          early_termination=float(v.early_termination), double_precision=bool(double_precision),
-                          shade=bool(shade), threads=int(v.threads))
-    img = np.ascontiguousarray(rgba[::-1])
-    if not return_stats:
-        return img
-    vs = vol.stats()
-    stats = {"render_ms": st["render_ms"], "build_ms": vs["build_ms"], "samples": st["samples"],
-             "skips": st["skips"], "blocks_allocated": vs["blocks_allocated"], "blocks_dense": vs["blocks_dense"],
-             "bricks_visible": vs["bricks_visible"], "bricks": vs["bricks"], "levels": vs["levels"],
-             "visible_block_bytes": vs["block_bytes"], "bytes": vs["bytes"], "dense_bytes": vs["dense_bytes"],
-             "non_finite": vs["non_finite"], "storage": vs["storage"], "backend": "cpu", "device": ""}
-    return img, stats
+    return VolumeRenderer(volume, color=color, opacity=opacity, spacing=spacing, origin=origin,
+                          opacity_unit_distance=opacity_unit_distance, threads=threads, backend=backend,
+                          device=device).render(camera=camera, size=size, sample_distance=sample_distance,
+                                                image_sample_distance=image_sample_distance,
+                                                early_termination=early_termination,
+                                                double_precision=double_precision, shade=shade,
+                                                return_stats=return_stats)

@@ -2,7 +2,8 @@
 
 The renderer stores only what a visible sample can read (Andrysco & Tricoche 2011, §3): 8/16-bit
 scalars (and float scalars holding only integers) as 8^3-cell bricks with a 1-voxel apron in their
-own width, other scalars as a block-sparse matrix of 8x8x8-voxel float blocks; it skips invisible
+own width, other floating-point scalars quantised into 16-bit bricks where the lookup table cannot
+resolve the step (else as a block-sparse matrix of 8x8x8-voxel float blocks); it skips invisible
 space through the matrix-tree levels above them. Rays are marched on the CPU (OpenMP) or, with
 ``backend="opencl"``, by OpenCL kernels over the same storage. This module converts and delegates.
 Where the VTK module does not import, ``render_volume`` is the engine extension's
@@ -28,7 +29,7 @@ from matrixtree import _checks
 from matrixtree._readers import check_not_empty
 from matrixtree._util import VtkErrors, check_backend, existing_file, read_by_extension
 
-__all__ = ["default_transfer_functions", "read_volume", "render_volume", "frame_camera"]
+__all__ = ["VolumeRenderer", "default_transfer_functions", "read_volume", "render_volume", "frame_camera"]
 
 
 #: Bytes per pixel a volume render holds at its peak: the float RGBA image (16), the 8-bit one (4),
@@ -204,11 +205,10 @@ def frame_camera(volume, azimuth: float = 30.0, elevation: float = 20.0, view_an
     return cam
 
 
-def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
-                           opacity_unit_distance, image_sample_distance, early_termination, threads):
-    """:func:`render_volume`'s inputs checked and completed, for both backends: a namespace with
-    image, width, height, color, opacity, camera and the numeric settings with their defaults
-    filled in. ValueError for the bad input :func:`render_volume`'s docstring lists."""
+def _prepare_volume(volume, color, opacity, spacing, origin, opacity_unit_distance, threads):
+    """The volume-level inputs of :class:`VolumeRenderer` checked and completed, for both backends:
+    a namespace with image, color, opacity, opacity_unit_distance and threads. ValueError for the
+    bad input :func:`render_volume`'s docstring lists."""
     image = _as_image(volume, spacing, origin)
     s = image.GetPointData().GetScalars()
     if image.GetNumberOfPoints() == 0 or s is None:
@@ -224,6 +224,24 @@ def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin
     sp = np.abs(np.array(image.GetSpacing(), dtype=float))
     if not np.all(np.isfinite(sp)) or np.any(sp == 0):
         raise ValueError(f"spacing must be finite and non-zero, got {tuple(image.GetSpacing())}")
+    if opacity_unit_distance is None:
+        opacity_unit_distance = sp.mean()
+    opacity_unit_distance = _checks.real(opacity_unit_distance, "opacity_unit_distance", 0.0, lo_open=True,
+                                         meaning="world units")
+    threads = _checks.threads(threads)
+    if color is None or opacity is None:
+        dc, do = default_transfer_functions(image)
+        color = color if color is not None else dc
+        opacity = opacity if opacity is not None else do
+    return SimpleNamespace(image=image, color=color, opacity=opacity, opacity_unit_distance=opacity_unit_distance,
+                           threads=threads)
+
+
+def _prepare_frame(image, size, camera, sample_distance, image_sample_distance, early_termination):
+    """The per-frame inputs of :meth:`VolumeRenderer.render` checked and completed: a namespace
+    with width, height, camera, sample_distance, image_sample_distance and early_termination."""
+    dims = image.GetDimensions()
+    sp = np.abs(np.array(image.GetSpacing(), dtype=float))
     w, h = _checks.image_size(size, _VOLUME_BYTES_PER_PIXEL)
     diagonal = float(np.linalg.norm((np.array(dims) - 1) * sp))
     if sample_distance is None:
@@ -233,24 +251,124 @@ def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin
         raise ValueError(f"sample_distance {sample_distance!r} asks for {diagonal / sample_distance:.3g} samples "
                          f"across the volume's diagonal ({diagonal:.6g}); at most 2^20 per ray are supported: "
                          f"use sample_distance >= {diagonal / _checks.MAX_SAMPLES_PER_RAY:.3g}")
-    if opacity_unit_distance is None:
-        opacity_unit_distance = sp.mean()
-    opacity_unit_distance = _checks.real(opacity_unit_distance, "opacity_unit_distance", 0.0, lo_open=True,
-                                         meaning="world units")
     image_sample_distance = _checks.real(image_sample_distance, "image_sample_distance", 1.0, 32.0)
     early_termination = _checks.real(early_termination, "early_termination", 0.0, 1.0, meaning="opacity")
-    threads = _checks.threads(threads)
-    if color is None or opacity is None:
-        dc, do = default_transfer_functions(image)
-        color = color if color is not None else dc
-        opacity = opacity if opacity is not None else do
     cam = camera if camera is not None else frame_camera(image)
     _checks.camera(cam.GetPosition(), cam.GetFocalPoint(), cam.GetViewUp(),
                    None if cam.GetParallelProjection() else cam.GetViewAngle())
-    return SimpleNamespace(image=image, width=w, height=h, color=color, opacity=opacity, camera=cam,
-                           sample_distance=sample_distance, opacity_unit_distance=opacity_unit_distance,
-                           image_sample_distance=image_sample_distance, early_termination=early_termination,
-                           threads=threads)
+    return SimpleNamespace(width=w, height=h, camera=cam, sample_distance=sample_distance,
+                           image_sample_distance=image_sample_distance, early_termination=early_termination)
+
+
+class VolumeRenderer:
+    """One volume rendered frame after frame: classified and stored once, again only when it must be.
+
+    The volume is classified with the opacity function into the block-sparse storage on the first
+    :meth:`render`; later frames reuse it, so a camera move or a new image size costs only the ray
+    marching. The volume is classified again when its scalars or the opacity function change
+    (their VTK modification times: modify them in place, or assign :attr:`opacity`); a colour
+    change only rebuilds the lookup table. :func:`render_volume` is one frame of a new renderer.
+
+    Parameters
+    ----------
+    volume, color, opacity, spacing, origin, opacity_unit_distance, threads, backend, device
+        As in :func:`render_volume`.
+
+    Examples
+    --------
+    >>> import numpy as np, matrixtree
+    >>> x, y, z = np.mgrid[-1:1:40j, -1:1:40j, -1:1:40j]
+    >>> r = matrixtree.VolumeRenderer((1.0 - np.sqrt(x**2 + y**2 + z**2)).clip(0))
+    >>> cam = matrixtree.frame_camera(r.image)
+    >>> a, st = r.render(camera=cam, size=(64, 48), return_stats=True)
+    >>> cam.Azimuth(30)
+    >>> b, st2 = r.render(camera=cam, size=(64, 48), return_stats=True)
+    >>> st["rebuilt"], st2["rebuilt"]                       # the camera move reuses the storage
+    (True, False)
+    """
+
+    def __init__(self, volume, *, color=None, opacity=None, spacing=None, origin=None,
+                 opacity_unit_distance: float | None = None, threads: int = 0, backend: str = "cpu",
+                 device: str | None = None):
+        check_backend(backend)
+        v = _prepare_volume(volume, color, opacity, spacing, origin, opacity_unit_distance, threads)
+        self.image = v.image
+        self.backend = backend
+        c = self._caster = vtkMatrixTreeVolumeRayCaster()
+        c.SetInputData(v.image)
+        c.SetColorTransferFunction(v.color)
+        c.SetScalarOpacity(v.opacity)
+        c.SetScalarOpacityUnitDistance(v.opacity_unit_distance)
+        c.SetNumberOfThreads(v.threads)
+        if backend == "opencl":
+            c.SetBackendToOpenCL()
+            if device is not None:
+                c.SetOpenCLDevice(str(device))
+
+    @property
+    def color(self):
+        """The colour transfer function (vtkColorTransferFunction)."""
+        return self._caster.GetColorTransferFunction()
+
+    @color.setter
+    def color(self, ctf) -> None:
+        self._caster.SetColorTransferFunction(ctf)
+
+    @property
+    def opacity(self):
+        """The scalar opacity function (vtkPiecewiseFunction); a new one reclassifies the volume."""
+        return self._caster.GetScalarOpacity()
+
+    @opacity.setter
+    def opacity(self, otf) -> None:
+        self._caster.SetScalarOpacity(otf)
+
+    def render(self, *, camera=None, size=(512, 512), sample_distance: float | None = None,
+               image_sample_distance: float = 1.0, early_termination: float = 0.99, double_precision: bool = False,
+               shade: bool = False, return_stats: bool = False):
+        """One frame: the arguments and results of :func:`render_volume`; the stats also say
+        whether this frame classified the volume (``rebuilt``)."""
+        f = _prepare_frame(self.image, size, camera, sample_distance, image_sample_distance, early_termination)
+        c = self._caster
+        c.SetImageSize(f.width, f.height)
+        c.SetCamera(f.camera)
+        c.SetSampleDistance(f.sample_distance)
+        c.SetImageSampleDistance(f.image_sample_distance)
+        c.SetEarlyTerminationThreshold(f.early_termination)
+        c.SetDoublePrecision(bool(double_precision))
+        c.SetShade(bool(shade))
+        with VtkErrors(c) as errors:
+            c.Update()
+        out = c.GetOutput().GetPointData().GetArray("RGBAFloat")
+        if out is None:
+            if self.backend == "opencl":
+                why = errors.last if errors.messages else "no OpenCL device, or a device error"
+                raise RuntimeError(f"{why} [render_volume: backend='cpu' needs no OpenCL]")
+            raise ValueError(errors.last if errors.messages else "volume rendering failed (see the VTK error above)")
+        img = vtk_to_numpy(out).reshape(f.height, f.width, 4)[::-1].copy()
+        if not return_stats:
+            return img
+        stats = {
+            "render_ms": c.GetLastRenderTime(),
+            "build_ms": c.GetLastBuildTime(),
+            "rebuilt": bool(c.GetLastRebuilt()),
+            "samples": c.GetNumberOfSamples(),
+            "skips": c.GetNumberOfSkips(),
+            "blocks_allocated": c.GetNumberOfAllocatedBlocks(),
+            "blocks_dense": c.GetNumberOfDenseBlocks(),
+            "bricks_visible": c.GetNumberOfVisibleBricks(),
+            "bricks": c.GetNumberOfBricks(),
+            "levels": c.GetNumberOfLevels(),
+            "visible_block_bytes": c.GetVisibleBlockBytes(),
+            "bytes": c.GetAllocatedBytes(),
+            "dense_bytes": c.GetDenseBytes(),
+            "non_finite": c.GetNumberOfNonFiniteScalars(),
+            "storage": ("float32", "uint8", "uint16")[c.GetVoxelStorage()],
+            "quantization_step": c.GetQuantizationStep(),
+            "backend": c.GetBackendAsString(),
+            "device": c.GetOpenCLDeviceName() if self.backend == "opencl" else "",
+        }
+        return img, stats
 
 
 def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=None, spacing=None, origin=None,
@@ -300,7 +418,10 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         OpenCL device: ``"P:D"`` indices, a device number, or part of its name; default
         ``$MATRIXTREE_OPENCL_DEVICE``, else the first GPU, else the first device.
     return_stats : bool, default: False
-        Also return a dict of timings, samples and block/byte counts.
+        Also return a dict of timings, samples, block/byte counts and the storage (``storage``:
+        ``float32``, ``uint8`` or ``uint16``; floating-point scalars are quantised into 16-bit
+        bricks, ``quantization_step`` their range / 65535, where the 4096-entry lookup table is
+        16 times coarser than a step: a sample moves by at most 1/32 of a table entry).
 
     Returns
     -------
@@ -322,6 +443,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     See Also
     --------
     matrixtree.render : surface ray casting of a mesh (also with ``backend``).
+    VolumeRenderer : the same frame after frame, the volume classified once.
 
     Examples
     --------
@@ -336,65 +458,17 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     >>> st["blocks_allocated"] < st["blocks_dense"]
     True
     """
-    check_backend(backend)
-    v = _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
-                               opacity_unit_distance, image_sample_distance, early_termination, threads)
-    image, w, h, color, opacity, cam = v.image, v.width, v.height, v.color, v.opacity, v.camera
-    sample_distance, opacity_unit_distance = v.sample_distance, v.opacity_unit_distance
-    image_sample_distance, early_termination, threads = v.image_sample_distance, v.early_termination, v.threads
-
-    caster = vtkMatrixTreeVolumeRayCaster()
-    caster.SetInputData(image)
-    caster.SetColorTransferFunction(color)
-    caster.SetScalarOpacity(opacity)
-    caster.SetScalarOpacityUnitDistance(opacity_unit_distance)
-    caster.SetImageSize(w, h)
-    caster.SetCamera(cam)
-    caster.SetSampleDistance(sample_distance)
-    caster.SetImageSampleDistance(image_sample_distance)
-    caster.SetEarlyTerminationThreshold(early_termination)
-    caster.SetDoublePrecision(bool(double_precision))
-    caster.SetShade(bool(shade))
-    caster.SetNumberOfThreads(threads)
-    if backend == "opencl":
-        caster.SetBackendToOpenCL()
-        if device is not None:
-            caster.SetOpenCLDevice(str(device))
-    with VtkErrors(caster) as errors:
-        caster.Update()
-    out = caster.GetOutput().GetPointData().GetArray("RGBAFloat")
-    if out is None:
-        if backend == "opencl":
-            why = errors.last if errors.messages else "no OpenCL device, or a device error"
-            raise RuntimeError(f"{why} [render_volume: backend='cpu' needs no OpenCL]")
-        raise ValueError(errors.last if errors.messages else "volume rendering failed (see the VTK error above)")
-    img = vtk_to_numpy(out).reshape(h, w, 4)[::-1].copy()
-    if not return_stats:
-        return img
-    stats = {
-        "render_ms": caster.GetLastRenderTime(),
-        "build_ms": caster.GetLastBuildTime(),
-        "samples": caster.GetNumberOfSamples(),
-        "skips": caster.GetNumberOfSkips(),
-        "blocks_allocated": caster.GetNumberOfAllocatedBlocks(),
-        "blocks_dense": caster.GetNumberOfDenseBlocks(),
-        "bricks_visible": caster.GetNumberOfVisibleBricks(),
-        "bricks": caster.GetNumberOfBricks(),
-        "levels": caster.GetNumberOfLevels(),
-        "visible_block_bytes": caster.GetVisibleBlockBytes(),
-        "bytes": caster.GetAllocatedBytes(),
-        "dense_bytes": caster.GetDenseBytes(),
-        "non_finite": caster.GetNumberOfNonFiniteScalars(),
-        "storage": ("float32", "uint8", "uint16")[caster.GetVoxelStorage()],
-        "backend": caster.GetBackendAsString(),
-        "device": caster.GetOpenCLDeviceName() if backend == "opencl" else "",
-    }
-    return img, stats
+    renderer = VolumeRenderer(volume, color=color, opacity=opacity, spacing=spacing, origin=origin,
+                              opacity_unit_distance=opacity_unit_distance, threads=threads, backend=backend,
+                              device=device)
+    return renderer.render(camera=camera, size=size, sample_distance=sample_distance,
+                           image_sample_distance=image_sample_distance, early_termination=early_termination,
+                           double_precision=double_precision, shade=shade, return_stats=return_stats)
 
 
 if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process
     from matrixtree import _engine  # noqa: E402
 
-    for _name in ("render_volume",):
+    for _name in ("render_volume", "VolumeRenderer"):
         _engine.adopt_docs(globals()[_name], getattr(_engine, _name))
-    from matrixtree._engine import render_volume  # noqa: E402, F811
+    from matrixtree._engine import VolumeRenderer, render_volume  # noqa: E402, F811

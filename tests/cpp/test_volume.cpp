@@ -216,9 +216,9 @@ TEST_F(ConstantBox, EveryPixelWhoseRayCrossesTheBoxIsMarched) {
 TEST(BlockSparseVolume, SamplingEqualsDenseArray) {
   const Dense d = blobs(37, 29, 21, 7);
   const TransferTable tf = rampTable(0, 100, 0.3, 0.5);
-  BlockSparseVolume sparse, full;
-  sparse.build(d.v.data(), d.n, tf);
-  VolumeBuildOptions o;
+  BlockSparseVolume sparse, full;  // Float32 blocks: the input's values (QuantizedFloat: the default)
+  sparse.build(d.v.data(), d.n, tf, mtest::floatBlocks());
+  VolumeBuildOptions o = mtest::floatBlocks();
   o.sparse = false;
   full.build(d.v.data(), d.n, tf, o);
   ASSERT_LT(sparse.stats().blocksAllocated, sparse.stats().blocksDense) << "blobs should leave blocks empty";
@@ -259,7 +259,7 @@ TEST(BlockSparseVolume, MemoryIsTheVisibleBlocksPlusTenPercent) {
   const Dense d = blobs(64, 64, 64, 3);
   const TransferTable tf = rampTable(0, 100, 0.3, 0.5);
   BlockSparseVolume vol;
-  vol.build(d.v.data(), d.n, tf);
+  vol.build(d.v.data(), d.n, tf, mtest::floatBlocks());  // QuantizedFloat checks the 16-bit bricks' memory
   const VolumeStats& s = vol.stats();
   EXPECT_GT(s.blocksAllocated, 0u);
   EXPECT_EQ(s.blockBytes, uint64_t(s.blocksAllocated) * 512 * 4);
@@ -349,10 +349,10 @@ TEST(BlockSparseVolume, TransparentTransferFunctionAllocatesNothing) {
 
 namespace {
 
-/// The straightforward marcher: every sample from the dense array, no storage, no skipping.
-std::vector<double> bruteForce(const Dense& d, const VolumeGeometry& g, const TransferTable& tf,
-                               const VolumeCamera& cam, double dt) {
-  std::vector<double> out(size_t(cam.width) * cam.height * 4, 0.0);
+/// The straightforward ray walk: visit(pixel, sample position in index space) for every sample
+/// k dt of every pixel's ray inside the box of `n` points, front to back.
+template <typename Visit>
+void forEachRaySample(const int n[3], const VolumeGeometry& g, const VolumeCamera& cam, double dt, Visit visit) {
   const Vec3 fwd = normalized(cam.focalPoint - cam.position);
   const Vec3 right = normalized(cross(fwd, cam.viewUp)), up = cross(right, fwd);
   const double th = std::tan(cam.viewAngle * M_PI / 360), aspect = double(cam.width) / cam.height;
@@ -362,25 +362,37 @@ std::vector<double> bruteForce(const Dense& d, const VolumeGeometry& g, const Tr
                                   up * ((2.0 * (y + 0.5) / cam.height - 1) * th));
       double t0 = 0, t1 = 1e300;
       for (int a = 0; a < 3; ++a) {
-        const double lo = g.origin[a], hi = g.origin[a] + (d.n[a] - 1) * g.spacing[a];
+        const double lo = g.origin[a], hi = g.origin[a] + (n[a] - 1) * g.spacing[a];
         double ta = (std::min(lo, hi) - cam.position[a]) / dir[a], tb = (std::max(lo, hi) - cam.position[a]) / dir[a];
         if (ta > tb) std::swap(ta, tb);
         t0 = std::max(t0, ta);
         t1 = std::min(t1, tb);
       }
-      double A = 0, C[3] = {0, 0, 0};
       for (int k = 0; t0 <= t1 && t0 + k * dt <= t1; ++k) {
         const Vec3 p = cam.position + dir * (t0 + k * dt);
-        const double v = d.sample((p.x - g.origin[0]) / g.spacing[0], (p.y - g.origin[1]) / g.spacing[1],
-                                  (p.z - g.origin[2]) / g.spacing[2]);
-        const float* e = tf.rgba().data() + 4 * tf.index(v);
-        const double a = 1 - std::pow(1 - double(e[3]), dt / tf.unitDistance());
-        for (int ch = 0; ch < 3; ++ch) C[ch] += (1 - A) * e[ch] * a;
-        A += (1 - A) * a;
+        visit(size_t(y) * cam.width + x, (p.x - g.origin[0]) / g.spacing[0], (p.y - g.origin[1]) / g.spacing[1],
+              (p.z - g.origin[2]) / g.spacing[2]);
       }
-      double* o = out.data() + (size_t(y) * cam.width + x) * 4;
-      o[0] = C[0], o[1] = C[1], o[2] = C[2], o[3] = A;
     }
+}
+
+/// A table entry as the brute-force marcher composites it: premultiplied colour, opacity for dt.
+void stepEntry(const TransferTable& tf, double v, double dt, double e[4]) {
+  const float* t = tf.rgba().data() + 4 * tf.index(v);
+  e[3] = 1 - std::pow(1 - double(t[3]), dt / tf.unitDistance());
+  for (int ch = 0; ch < 3; ++ch) e[ch] = t[ch] * e[3];
+}
+
+/// The straightforward marcher: every sample from the dense array, no storage, no skipping.
+std::vector<double> bruteForce(const Dense& d, const VolumeGeometry& g, const TransferTable& tf,
+                               const VolumeCamera& cam, double dt) {
+  std::vector<double> out(size_t(cam.width) * cam.height * 4, 0.0);
+  forEachRaySample(d.n, g, cam, dt, [&](size_t pixel, double x, double y, double z) {
+    double e[4];
+    stepEntry(tf, d.sample(x, y, z), dt, e);
+    double* o = out.data() + pixel * 4;
+    for (int ch = 0; ch < 4; ++ch) o[ch] += (1 - o[3]) * e[ch];  // o[3] last: the opacity before
+  });
   return out;
 }
 
@@ -393,7 +405,7 @@ TEST(VolumeRender, EqualsDenseBruteForceMarcher) {
   g.spacing[0] = 0.9, g.spacing[1] = 1.2, g.spacing[2] = -0.7;  // a negative spacing too
   g.origin[0] = -3, g.origin[1] = 2, g.origin[2] = 5;
   BlockSparseVolume vol;
-  vol.build(d.v.data(), d.n, tf);
+  vol.build(d.v.data(), d.n, tf, mtest::floatBlocks());  // the exact values (QuantizedFloat: the default)
   const VolumeCamera cam = lookAt({-20, 40, -30}, {11, 20, -5}, 24, 20);
   VolumeRenderOptions opt;
   opt.sampleDistance = 0.5;
@@ -408,13 +420,122 @@ TEST(VolumeRender, EqualsDenseBruteForceMarcher) {
   EXPECT_LT(m, 1e-4);
 }
 
+// Floating-point input quantised into 16-bit bricks (VolumeBuildOptions::quantizeFloat) against
+// the exact Float32 path: the error bound stated there, sample by sample and pixel by pixel.
+TEST(QuantizedFloat, ImageWithinTheBoundOfTheExactPath) {
+  Dense d = blobs(41, 37, 29, 5);
+  std::mt19937 rng(17);
+  std::normal_distribution<float> noise(0.f, 1.5f);
+  for (float& x : d.v) x += noise(rng);  // CT-like: noisy, not integer-valued
+  const TransferTable tf = rampTable(0, 100, 0.25, 0.6);  // 1024 entries
+  BlockSparseVolume q, e;
+  q.build(d.v.data(), d.n, tf);
+  e.build(d.v.data(), d.n, tf, mtest::floatBlocks());
+  ASSERT_EQ(q.storage(), VoxelStorage::UInt16);
+  ASSERT_EQ(e.storage(), VoxelStorage::Float32);
+  const double lo = q.minValue(), hi = q.maxValue(), step = q.quantizationStep();
+  EXPECT_NEAR(step, (hi - lo) / 65535.0, 1e-6 * step);
+  EXPECT_LE(VolumeBuildOptions::QUANTIZE_RATIO * step, (tf.hi() - tf.lo()) / (tf.size() - 1)) << "the rule";
+  EXPECT_EQ(e.quantizationStep(), 0.f);
+  EXPECT_LE(double(q.stats().bytes), 1.10 * double(q.stats().blockBytes)) << "memory: the visible blocks + 10%";
+  EXPECT_LT(q.stats().bytes, e.stats().bytes) << "16-bit bricks hold less than the float blocks";
+
+  // The field the quantised volume holds: every corner of a visible cell within step / 2 of the
+  // input (plus the float rounding of s * step + min).
+  Dense dq = d;
+  for (float& x : dq.v) x = float(std::nearbyint((double(x) - lo) / step)) * q.storageScale() + q.storageOffset();
+  int checked = 0;
+  for (int k = 0; k + 1 < d.n[2]; ++k)
+    for (int j = 0; j + 1 < d.n[1]; ++j)
+      for (int i = 0; i + 1 < d.n[0]; ++i) {
+        float c[8];
+        if (!q.cellCorners(i, j, k, c)) continue;
+        ++checked;
+        for (int m = 0; m < 8; ++m) {
+          const int x = i + (m & 1), y = j + ((m >> 1) & 1), z = k + (m >> 2);
+          ASSERT_EQ(c[m], dq.at(x, y, z));
+          ASSERT_LE(std::fabs(double(c[m]) - d.at(x, y, z)), step / 2 + 1e-6 * (std::fabs(hi) + std::fabs(lo)));
+        }
+      }
+  EXPECT_GT(checked, 1000);
+
+  // Per pixel: the exact and the quantised rays sample the same points; the bound is the sum,
+  // over the samples whose table entry differs, of that change in premultiplied colour plus
+  // opacity. Samples move by at most step / 2 <= 1/32 entry: an entry changes by at most one.
+  VolumeGeometry g;
+  g.spacing[0] = 0.9, g.spacing[1] = 1.1, g.spacing[2] = 0.8;
+  const VolumeCamera cam = lookAt({-25, 45, -30}, {18, 20, 11}, 32, 28);
+  VolumeRenderOptions opt;
+  opt.sampleDistance = 0.5;
+  opt.earlyTermination = 1.0;  // no ray stops at a different sample
+  std::vector<double> bound(size_t(cam.width) * cam.height * 4, 0.0);
+  uint64_t samples = 0, changed = 0;
+  forEachRaySample(d.n, g, cam, opt.sampleDistance, [&](size_t pixel, double x, double y, double z) {
+    const double ve = d.sample(x, y, z), vq = dq.sample(x, y, z);
+    EXPECT_LE(std::fabs(ve - vq), step / 2 + 1e-6 * (std::fabs(hi) + std::fabs(lo)));
+    const int ie = tf.index(ve), iq = tf.index(vq);
+    EXPECT_LE(std::abs(ie - iq), 1);
+    ++samples;
+    if (ie == iq) return;
+    ++changed;
+    double ee[4], eq[4];
+    stepEntry(tf, ve, opt.sampleDistance, ee);
+    stepEntry(tf, vq, opt.sampleDistance, eq);
+    for (int ch = 0; ch < 4; ++ch) bound[pixel * 4 + ch] += std::fabs(ee[ch] - eq[ch]) + std::fabs(ee[3] - eq[3]);
+  });
+  EXPECT_LT(double(changed), 4.0 * step / ((tf.hi() - tf.lo()) / (tf.size() - 1)) * double(samples) + 10)
+      << "only samples within step / 2 of an entry boundary change entry";
+  for (bool dbl : {false, true}) {
+    VolumeRenderOptions o = opt;
+    o.doublePrecision = dbl;
+    const VolumeImage a = renderVolume(q, g, tf, cam, o), b = renderVolume(e, g, tf, cam, o);
+    double sumA = 0, worst = 0;
+    for (size_t i = 0; i < a.rgba.size(); ++i) {
+      EXPECT_LE(std::fabs(a.rgba[i] - b.rgba[i]), bound[i] + 2e-4) << "pixel " << i / 4 << " channel " << i % 4;
+      worst = std::max(worst, double(std::fabs(a.rgba[i] - b.rgba[i])));
+    }
+    for (size_t i = 3; i < b.rgba.size(); i += 4) sumA += b.rgba[i];
+    EXPECT_GT(sumA, 5.0) << "the view should see the blobs";
+    EXPECT_LT(worst, 2.0 / 255) << "invisible in an 8-bit image";
+    // The quantised image is the brute-force image of the field it holds.
+    const std::vector<double> ref = bruteForce(dq, g, tf, cam, opt.sampleDistance);
+    double m = 0;
+    for (size_t i = 0; i < ref.size(); ++i) m = std::max(m, std::fabs(ref[i] - a.rgba[i]));
+    EXPECT_LT(m, 1e-4) << (dbl ? "double" : "float");
+  }
+}
+
+TEST(QuantizedFloat, FineTablesAndWideRangesKeepFloatBlocks) {
+  Dense d = blobs(20, 18, 16, 4);
+  for (float& x : d.v) x += 0.3f;
+  BlockSparseVolume a, b, c;
+  a.build(d.v.data(), d.n, rampTable(0, 100, 0.2, 0.5, 1024));
+  EXPECT_EQ(a.storage(), VoxelStorage::UInt16);
+  // A table with entries finer than 16 quantisation steps: the exact float path.
+  b.build(d.v.data(), d.n, rampTable(0, 100, 0.2, 0.5, 65536));
+  EXPECT_EQ(b.storage(), VoxelStorage::Float32);
+  // A table over a narrow window of a wide range: its entries are finer than 16 steps too.
+  d.v[3] = 1e6f;
+  c.build(d.v.data(), d.n, rampTable(0, 100, 0.2, 0.5, 1024));
+  EXPECT_EQ(c.storage(), VoxelStorage::Float32);
+  const std::vector<double> dv(d.v.begin(), d.v.end());
+  BlockSparseVolume dd;
+  dd.build(dv.data(), d.n, rampTable(0, 2e6, 0.2, 0.5, 1024));
+  EXPECT_EQ(dd.storage(), VoxelStorage::UInt16) << "double input is quantised alike";
+}
+
 TEST(VolumeRender, SkippingEqualsNoSkippingOnBlobs) {
   const Dense d = blobs(70, 50, 40, 21);
   const TransferTable tf = rampTable(0, 100, 0.3, 0.4);
-  BlockSparseVolume vol;
-  vol.build(d.v.data(), d.n, tf);
+  BlockSparseVolume flt, quantized;
+  flt.build(d.v.data(), d.n, tf, mtest::floatBlocks());
+  quantized.build(d.v.data(), d.n, tf);
+  ASSERT_EQ(quantized.storage(), VoxelStorage::UInt16);
   const VolumeCamera cam = lookAt({-30, 70, -50}, {35, 25, 20}, 48, 40);
-  for (int variant = 0; variant < 4; ++variant) {
+  for (int variant = 0; variant < 8; ++variant) {
+    // Float32 blocks sample every cell of a visible brick; apron bricks only the visible cells,
+    // with or without skipping.
+    const BlockSparseVolume& vol = variant & 4 ? quantized : flt;
     VolumeRenderOptions opt;
     opt.sampleDistance = 0.37;
     opt.doublePrecision = variant & 1;
@@ -426,7 +547,8 @@ TEST(VolumeRender, SkippingEqualsNoSkippingOnBlobs) {
     const VolumeImage b = renderVolume(vol, VolumeGeometry(), tf, cam, noSkip);
     EXPECT_LE(maxDiff(a, b), 1e-6) << "variant " << variant;
     EXPECT_GT(a.skips, 0u);
-    EXPECT_LT(a.samples, b.samples) << "skipping should classify fewer samples";
+    if (variant & 4) EXPECT_EQ(a.samples, b.samples) << "the visible cells, either way";
+    else EXPECT_LT(a.samples, b.samples) << "skipping should classify fewer samples";
   }
 }
 
@@ -541,7 +663,12 @@ TEST(VolumeEdgeCases, NonFiniteScalarsBecomeTheLowestFiniteValue) {
   EXPECT_EQ(vol.stats().nonFinite, 2u);
   EXPECT_EQ(vol.minValue(), 2.f);
   EXPECT_EQ(vol.maxValue(), 5.f);
-  EXPECT_EQ(vol.voxels().get(2, 2, 0), 2.f);  // index 10 = (2, 2, 0)
+  double at10 = -1;
+  ASSERT_TRUE(vol.sample(2, 2, 0, at10));  // index 10 = (2, 2, 0)
+  EXPECT_EQ(at10, 2.0);
+  BlockSparseVolume exact;
+  exact.build(v.data(), dims, constantTable(0, 10, 0.5f), mtest::floatBlocks());
+  EXPECT_EQ(exact.voxels().get(2, 2, 0), 2.f);
   const VolumeImage img = renderVolume(vol, VolumeGeometry(), constantTable(0, 10, 0.5f),
                                        lookAt({1.5, 1.5, -10}, {1.5, 1.5, 1.5}, 8, 8), VolumeRenderOptions());
   for (float f : img.rgba) EXPECT_TRUE(std::isfinite(f));
@@ -680,9 +807,11 @@ TEST(CompactStorage, IntegerValuedFloatIsStoredLosslessly) {
   EXPECT_TRUE(o.compactIntegralFloat) << "on by default, as vtkMatrixTreeVolumeRayCaster builds";
   b.build(v.data(), d.n, tf, o);
   EXPECT_EQ(b.storage(), VoxelStorage::UInt16);
-  v[7] += 0.5f;  // one fractional value: stays float
+  v[7] += 0.5f;  // one fractional value: stays float (or is quantised, quantizeFloat)
+  VolumeBuildOptions exact = o;
+  exact.quantizeFloat = false;
   BlockSparseVolume c;
-  c.build(v.data(), d.n, tf, o);
+  c.build(v.data(), d.n, tf, exact);
   EXPECT_EQ(c.storage(), VoxelStorage::Float32);
   const VolumeCamera cam = lookAt({-20, 30, -30}, {10, 9, 8}, 24, 24);
   VolumeRenderOptions opt;

@@ -104,6 +104,82 @@ TEST(VolumeFilter, SkippingAndDenseStorageDoNotChangeTheImage) {
   EXPECT_GT(alpha / double(a.rgba.size() / 4), 0.05);
 }
 
+/// `im` with its scalars as floats plus a fractional, smooth offset: a float volume that is not
+/// integer-valued (so neither 8/16-bit storage applies losslessly).
+vtkSmartPointer<vtkImageData> asFractionalFloat(vtkImageData* im) {
+  auto out = vtkSmartPointer<vtkImageData>::New();
+  out->CopyStructure(im);
+  vtkDataArray* s = im->GetPointData()->GetScalars();
+  vtkNew<vtkFloatArray> f;
+  f->SetName("scalars");
+  f->SetNumberOfTuples(s->GetNumberOfTuples());
+  for (vtkIdType i = 0; i < s->GetNumberOfTuples(); ++i)
+    f->SetValue(i, float(s->GetTuple1(i) + 0.37 * std::sin(0.013 * double(i))));
+  out->GetPointData()->SetScalars(f);
+  return out;
+}
+
+TEST(VolumeFilter, FloatScalarsAreQuantisedWithinTheBoundOfExactFloat) {
+  const vtkSmartPointer<vtkImageData> im =
+    asFractionalFloat(mtest::readVolume(mtest::dataPath("volumes/HeadMRVolume.mhd")));
+  const vtkSmartPointer<vtkCamera> cam = mtest::frameCamera(im);
+  Caster caster(im);
+  const Render q = caster.render(cam, 48, 40, vtkMatrixTreeVolumeTuning());
+  vtkMatrixTreeVolumeTuning exactFloat;
+  exactFloat.ExactFloat = true;
+  const Render e = caster.render(cam, 48, 40, exactFloat);
+  EXPECT_EQ(q.storage, 2) << "float scalars in 16-bit bricks by default";
+  EXPECT_EQ(e.storage, 0) << "ExactFloat: float blocks";
+  EXPECT_LE(double(q.bytes), 1.10 * double(q.visibleBytes));
+  EXPECT_LT(q.bytes, e.bytes);
+  // 4096 table entries over the range, 65535 steps: a sample moves by 1/32 entry at most
+  // (mtree::VolumeBuildOptions::quantizeFloat); the images agree far below 8-bit resolution.
+  EXPECT_LE(maxDiff(q, e), 2.0 / 255);
+  double alpha = 0;
+  for (size_t i = 3; i < q.rgba.size(); i += 4) alpha += q.rgba[i];
+  EXPECT_GT(alpha / double(q.rgba.size() / 4), 0.05);
+}
+
+TEST(VolumeFilter, AnExtentNotStartingAtZeroIsPlacedByIt) {
+  // Point (i, j, k) of the scalars is structured point extent start + (i, j, k), at origin +
+  // that times spacing. The same world volume with its extent starting at (10, -4, 7) and its
+  // origin moved back by as much renders the same image, bit for bit.
+  const vtkSmartPointer<vtkImageData> im = mtest::readVolume(mtest::dataPath("volumes/ironProt.vtk"));
+  int ext[6];
+  double o[3], sp[3];
+  im->GetExtent(ext);
+  im->GetOrigin(o);
+  im->GetSpacing(sp);
+  ASSERT_EQ(ext[0], 0);
+  const int shift[3] = {10, -4, 7};
+  auto moved = vtkSmartPointer<vtkImageData>::New();
+  moved->SetExtent(ext[0] + shift[0], ext[1] + shift[0], ext[2] + shift[1], ext[3] + shift[1], ext[4] + shift[2],
+                   ext[5] + shift[2]);
+  moved->SetSpacing(sp);
+  moved->SetOrigin(o[0] - shift[0] * sp[0], o[1] - shift[1] * sp[1], o[2] - shift[2] * sp[2]);
+  moved->GetPointData()->SetScalars(im->GetPointData()->GetScalars());
+  double b0[6], b1[6];
+  im->GetBounds(b0);
+  moved->GetBounds(b1);
+  for (int a = 0; a < 6; ++a) ASSERT_NEAR(b0[a], b1[a], 1e-9) << "the same world box";
+  const vtkSmartPointer<vtkCamera> cam = mtest::frameCamera(im);
+  Caster a(im), b(moved);
+  const Render ra = a.render(cam, 40, 36, vtkMatrixTreeVolumeTuning());
+  const Render rb = b.render(cam, 40, 36, vtkMatrixTreeVolumeTuning());
+  EXPECT_LE(maxDiff(ra, rb), 1e-6);
+  double alpha = 0;
+  for (size_t i = 3; i < ra.rgba.size(); i += 4) alpha += ra.rgba[i];
+  EXPECT_GT(alpha / double(ra.rgba.size() / 4), 0.02);
+  // The same scalars at extent start 0 with the moved origin sit elsewhere: a different image.
+  auto atZero = vtkSmartPointer<vtkImageData>::New();
+  atZero->SetDimensions(im->GetDimensions());
+  atZero->SetSpacing(sp);
+  atZero->SetOrigin(moved->GetOrigin());
+  atZero->GetPointData()->SetScalars(im->GetPointData()->GetScalars());
+  Caster c(atZero);
+  EXPECT_GT(maxDiff(ra, c.render(cam, 40, 36, vtkMatrixTreeVolumeTuning())), 0.05);
+}
+
 class VolumeFilterSimd : public ::testing::TestWithParam<std::string> {};
 
 /// Where the CPU has AVX2 the unshaded 8/16-bit marcher takes 8 samples at a time; the SSE2

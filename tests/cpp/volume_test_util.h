@@ -18,10 +18,12 @@
 namespace mtest {
 
 /// Build options that keep float input in Float32 blocks even where its values are all
-/// integers (VolumeBuildOptions::compactIntegralFloat off): for tests of the float layout.
+/// integers or the table allows quantising them (VolumeBuildOptions::compactIntegralFloat and
+/// quantizeFloat off): for tests of the float layout.
 inline mtree::VolumeBuildOptions floatBlocks() {
   mtree::VolumeBuildOptions o;
   o.compactIntegralFloat = false;
+  o.quantizeFloat = false;
   return o;
 }
 

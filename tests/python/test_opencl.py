@@ -176,15 +176,40 @@ def test_render_volume_opencl_equals_cpu_on_real_volumes(name, storage):
 
 @needs_device
 def test_render_volume_opencl_equals_cpu_on_float_input():
-    # Non-integer floats: the float-block storage, in double accumulation too.
+    # Non-integer floats: quantised into 16-bit bricks (the default table is 16x coarser than a
+    # step), and in float blocks where the table is finer (TableSize 65536); double accumulation too.
+    from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+    from vtkmodules.vtkCommonDataModel import vtkImageData
+    from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
+
     x, y, z = np.mgrid[-1:1:33j, -1:1:29j, -1:1:41j]
     field = (np.exp(-4 * (x ** 2 + (y - 0.2) ** 2 + z ** 2)) + 0.3 * np.sin(5 * x * y)).astype(np.float32)
     for double in (False, True):
         a, sa = matrixtree.render_volume(field, size=(48, 40), double_precision=double, return_stats=True)
         b = matrixtree.render_volume(field, size=(48, 40), double_precision=double, backend="opencl")
-        assert sa["storage"] == "float32"
+        assert sa["storage"] == "uint16"
         assert a[..., 3].mean() > 0.02
         assert np.abs(a - b).max() <= 1e-5
+    im = vtkImageData()
+    im.SetDimensions(*field.shape)
+    im.GetPointData().SetScalars(numpy_to_vtk(field.transpose(2, 1, 0).ravel(), deep=True))
+    ctf, otf = matrixtree.default_transfer_functions(im)
+    images = []
+    for backend in ("cpu", "opencl"):
+        c = vtkMatrixTreeVolumeRayCaster()
+        c.SetInputData(im)
+        c.SetColorTransferFunction(ctf)
+        c.SetScalarOpacity(otf)
+        c.SetTableSize(65536)
+        c.SetImageSize(48, 40)
+        c.SetCamera(matrixtree.frame_camera(im))
+        if backend == "opencl":
+            c.SetBackendToOpenCL()
+        c.Update()
+        assert c.GetVoxelStorage() == 0 and c.GetQuantizationStep() == 0
+        images.append(vtk_to_numpy(c.GetOutput().GetPointData().GetArray("RGBAFloat")))
+    assert images[0][:, 3].mean() > 0.02
+    assert np.abs(images[0] - images[1]).max() <= 1e-5
 
 
 # ----------------------------------------------------------------------------- cell location

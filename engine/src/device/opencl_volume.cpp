@@ -24,6 +24,7 @@ struct VolumeRenderer::State {
   Buffer ptr, data, masks, occ, dist, params, table, out, counts;
   MtVolumeParams shape{};  // the volume's fields of the kernels' parameters (dims .. level)
   VoxelStorage storage = VoxelStorage::Float32;
+  float scale = 1, offset = 0;  // BlockSparseVolume::storageScale/storageOffset (sampleUnits)
   bool uploaded = false;
 };
 
@@ -44,7 +45,9 @@ void VolumeRenderer::upload(const BlockSparseVolume& vol) {
   S.storage = vol.storage();
   MtVolumeParams& P = S.shape;
   P = MtVolumeParams{};
-  P.offset = vol.storageOffset();
+  S.scale = vol.storageScale();
+  S.offset = vol.storageOffset();
+  P.offset = S.offset / S.scale;  // sample units, as sampleUnits()
   for (int a = 0; a < 3; ++a) {
     P.dims[a] = vol.dim(a);
     P.logBlock[a] = d.logBlock[a];
@@ -126,8 +129,9 @@ VolumeImage VolumeRenderer::render(const VolumeGeometry& geo, const TransferTabl
   P.diffuse = opt.diffuse;
   P.specular = opt.specular;
   P.specularPower = opt.specularPower;
-  P.tableLo = tf.indexLo();
-  P.tableScale = tf.indexScale();
+  // The table's index map in sample units, as sampleUnits() (the CPU marchers' numbers).
+  P.tableLo = tf.indexLo() / S.scale;
+  P.tableScale = tf.indexScale() * S.scale;
   P.lastEntry = tf.lastIndex();
   P.skip = opt.emptySpaceSkipping ? 1 : 0;
   P.shade = opt.shade ? 1 : 0;

@@ -22,6 +22,24 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
   const int64_t nBricks = int64_t(nb[0]) * nb[1] * nb[2];
   const size_t sx = 1, sy = size_t(n[0]), sz = size_t(n[0]) * n[1];
   auto at = [&](int i, int j, int k) { return dense[size_t(k) * sz + size_t(j) * sy + size_t(i) * sx]; };
+  const bool compact = storage_ != VoxelStorage::Float32;
+  // From here on `dense` holds stored values (UInt8/UInt16: value - offset, exact for integer
+  // input; quantised input rounded to the nearest step), and the visibility is that of the values
+  // they stand for, value(s) = s * scale_ + offset_ (monotone; s itself for Float32), i.e. of
+  // what the marchers will read.
+  if (compact) {
+    const float off = offset_;
+    const double scale = scale_;
+    const bool quantized = quantized_;
+    const int64_t total = int64_t(n[0]) * n[1] * n[2];
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int64_t i = 0; i < total; ++i) {
+      float& v = dense[size_t(i)];
+      v = quantized ? float(std::min(65535.0, std::max(0.0, std::nearbyint((double(v) - off) / scale)))) : v - off;
+    }
+  }
+  const float scale = scale_, offset = offset_;
+  const auto value = [scale, offset](float s) { return s * scale + offset; };
 
   brickMin_.assign(size_t(nBricks), 0.f);
   brickMax_.assign(size_t(nBricks), 0.f);
@@ -30,9 +48,9 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
   for (int a = 0; a < 3; ++a) l0.n[a] = nb[a];
   l0.occ.assign(size_t(nBricks), 0);
   std::vector<uint8_t> marks(vox_.pointerCount(), opt.sparse ? 0 : 1);
-  const bool compact = storage_ != VoxelStorage::Float32;
   cellMask_.assign(compact ? size_t(nBricks) * DIM : 0, 0);
   uint64_t visibleCells = 0;
+  const float tfMag = scale_ != 1.f ? float(std::fabs(tf.lo()) + std::fabs(tf.hi())) : 0.f;
 
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 4) reduction(+ : visibleCells)
   for (int64_t b = 0; b < nBricks; ++b) {
@@ -48,10 +66,13 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
           mn = std::min(mn, v);
           mx = std::max(mx, v);
         }
+    mn = value(mn);
+    mx = value(mx);
     brickMin_[size_t(b)] = mn;
     brickMax_[size_t(b)] = mx;
-    // Round-off bound of an interpolation (of stored values, then + offset_: see maxOpacity).
-    const auto tol = [&](float a, float b) { return 1e-5f * (std::fabs(a) + std::fabs(b) + 2.f * std::fabs(offset_)) + 1e-30f; };
+    // Round-off bound of an interpolation (of stored values, then + offset_: see maxOpacity); in
+    // sample units (scale_ != 1) the table's origin and scale are rounded too, hence its range.
+    const auto tol = [&](float a, float b) { return 1e-5f * (std::fabs(a) + std::fabs(b) + 2.f * std::fabs(offset_) + tfMag) + 1e-30f; };
     if (tf.maxOpacity(mn, mx, tol(mn, mx)) <= 0.f) continue;  // the whole brick is transparent
     uint64_t vis = 0;
     for (int k = c0[2]; k < c1[2]; ++k)
@@ -63,6 +84,8 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
             lo = std::min(lo, v);
             hi = std::max(hi, v);
           }
+          lo = value(lo);
+          hi = value(hi);
           if (tf.maxOpacity(lo, hi, tol(lo, hi)) <= 0.f) continue;
           ++vis;
           if (compact) cellMask_[size_t(b) * DIM + (k - c0[2])] |= uint64_t(1) << ((i - c0[0]) + DIM * (j - c0[1]));
@@ -96,7 +119,6 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
     paired_ = storage_ == VoxelStorage::UInt8 && nBricks <= PAIRED_MAX_BRICKS;
     if (storage_ == VoxelStorage::UInt8) b8_.assign(size_t(count) * (paired_ ? BRICK_BYTES8 : BRICK_VOLUME) + BRICK_PAD, 0);
     else b16_.assign(size_t(count) * BRICK_VOLUME, 0);
-    const float off = offset_;
 #pragma omp parallel for num_threads(threads) schedule(static)
     for (int64_t b = 0; b < nBricks; ++b) {
       const uint32_t s = brickPtr_[size_t(b)];
@@ -111,13 +133,13 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
             if (paired_) {
               // Rows of y pairs: voxel row j is the first of pair row j and the second of j - 1.
               const size_t pb = size_t(s) * BRICK_BYTES8;
-              const uint8_t u = static_cast<uint8_t>(v - off);
+              const uint8_t u = static_cast<uint8_t>(v);
               if (j < DIM) b8_[pb + size_t(pairOffset(i, j, k))] = u;
               if (j > 0) b8_[pb + size_t(pairOffset(i, j - 1, k)) + 1] = u;
             } else if (storage_ == VoxelStorage::UInt8) {
-              b8_[e] = static_cast<uint8_t>(v - off);
+              b8_[e] = static_cast<uint8_t>(v);
             } else {
-              b16_[e] = static_cast<uint16_t>(v - off);
+              b16_[e] = static_cast<uint16_t>(v);
             }
           }
     }

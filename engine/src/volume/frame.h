@@ -96,7 +96,7 @@ void setupRays4(const RaySetupFrame& S, int x, PixelRay r[4]);
 
 /// march.h's apronClampedSample<false> at the position p (x, y, z, then any): the sample where
 /// it needs clamping, composited into (C, T) (AccT's sums). True when the ray is opaque. Compiled
-/// in render.cpp for the baseline instruction set, as the BlockSparseVolume::cellCorners it reads.
+/// in render.cpp for the baseline instruction set, as the BlockSparseVolume::cellCornersInSampleUnits it reads.
 bool clampedSampleUnshaded(const Frame& F, const float p[4], float C[4], float& T, uint64_t& samples);
 
 }  // namespace volume_detail

@@ -283,7 +283,7 @@ __attribute__((noinline, cold)) inline
 bool clampedCorners(const BlockSparseVolume& vol, const int n[3], double x, double y, double z, float cc[8],
                     double f[3]) {
   const int ci = clampCell(x, n[0], f[0]), cj = clampCell(y, n[1], f[1]), ck = clampCell(z, n[2], f[2]);
-  return vol.cellCorners(ci, cj, ck, cc);
+  return vol.cellCornersInSampleUnits(ci, cj, ck, cc);
 }
 
 /// Marches one ray over samples k = 0..kEnd at t_k = t0 + k dt, position o + d t_k (index
@@ -337,7 +337,7 @@ void march(const Frame& F, Fetch fetch, const double o[3], const double d[3], do
       const int lx = ix - ox, ly = iy - oy, lz = iz - oz;
       float cc[8];
       R fx, fy, fz;
-      float offset = F.offset;  // the fetch reads stored values; cellCorners() adds the offset
+      float offset = F.offset;  // the fetch reads stored values; cellCornersInSampleUnits() adds it
       if (((unsigned(lx) > mx) | (unsigned(ly) > my) | (unsigned(lz) > mz)) == 0) {
         // In the brick and in [0, n-1): clampCell's cell is the truncation (x in (-1, 0)
         // truncates to 0 with fraction 0) and its fraction x - cell.
@@ -520,7 +520,7 @@ inline bool apronClampedSampleAt(const Frame& F, const float p[4], const double 
   int c[3];
   for (int a = 0; a < 3; ++a) c[a] = clampCell(double(p[a]), F.n[a], f[a]);
   float cc[8];
-  if (!F.vol->cellCorners(c[0], c[1], c[2], cc)) return false;
+  if (!F.vol->cellCornersInSampleUnits(c[0], c[1], c[2], cc)) return false;
   ++samples;
   const float v = trilinear<float>(cc, float(f[0]), float(f[1]), float(f[2]));  // offset is in cc
   const float* e = F.table + 4 * tableIndex(F, v);

@@ -6,7 +6,7 @@
 // multiply-add rounds once where the SSE2 marcher rounds twice).
 //
 // What this file runs for AVX2 is its own: march.h's code comes in its unnamed namespace, this
-// file's in its own, and BlockSparseVolume::cellCorners (inline, shared) is reached only through
+// file's in its own, and BlockSparseVolume::cellCornersInSampleUnits (inline, shared) is reached only through
 // clampedSampleUnshaded, compiled in render.cpp. So no AVX2-compiled copy of a shared inline
 // function can stand in for the baseline one.
 #if MATRIXTREE_VOLUME_AVX2

@@ -377,10 +377,11 @@ VolumeImage renderVolume(const BlockSparseVolume& vol, const VolumeGeometry& geo
   }
   F.table = table.data();
   F.table8 = nullptr;
-  F.tlo = tf.indexLo();
-  F.tscale = tf.indexScale();
+  const SampleUnits units = sampleUnits(vol, tf);
+  F.tlo = units.tableLo;
+  F.tscale = units.tableScale;
   F.tlast = tf.lastIndex();
-  F.offset = vol.storageOffset();
+  F.offset = units.offset;
   F.dt = opt.sampleDistance;
   F.threshold = earlyTerminationThreshold(opt);
   F.dist = vol.brickDistances().data();

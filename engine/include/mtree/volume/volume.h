@@ -4,7 +4,8 @@
 //
 //   BlockSparseVolume  the scalar field, block-sparse, in one of two layouts (VoxelStorage):
 //                      Float32: a BlockSparseMatrix<float> of DIM^3-voxel blocks (any input type);
-//                      UInt8/UInt16 (8/16-bit integer input, the default for it): bricks of DIM^3
+//                      UInt8/UInt16 (8/16-bit integer input, the default for it; floating-point
+//                      input holding integers, or quantised: VolumeBuildOptions): bricks of DIM^3
 //                      cells stored as (DIM+1)^3 voxels in the input's width, i.e. with a 1-voxel
 //                      apron towards +x/+y/+z, so all 8 corners of every cell of a brick are in
 //                      the brick (no neighbour lookup per sample); signed input is offset.
@@ -105,6 +106,18 @@ struct VolumeBuildOptions {
   /// off) whose values are all integers spanning at most 65535: store it as UInt8/UInt16 too
   /// (lossless; both back ends read those bricks). false: such input keeps Float32 blocks.
   bool compactIntegralFloat = true;
+  /// Other floating-point input: quantise it into UInt16 bricks, value = stored * q + min with
+  /// q = (max - min) / 65535, when the transfer table is at least QUANTIZE_RATIO times coarser
+  /// (its entry spacing (hi - lo) / (size - 1) >= QUANTIZE_RATIO q). Error bound: a sample is a
+  /// convex combination of its 8 corners, so it moves by at most q / 2 (<= 1/32 of an entry
+  /// spacing): its table entry is the exact path's or a neighbour of it, the neighbour only for a
+  /// sample within q / 2 of the midpoint between two entries. A pixel then differs from the exact
+  /// path's by at most the sum, over its samples that change entry, of that entry step's change in
+  /// premultiplied colour plus opacity (compositing is 1-Lipschitz in each sample's entry: its
+  /// weight T_k <= 1 and the colour behind it is at most T_k). docs/bench_volume.md states it and
+  /// tests/cpp/test_volume.cpp checks it against the exact path (false here).
+  bool quantizeFloat = true;
+  static constexpr double QUANTIZE_RATIO = 16.0;
   int threads = 0;      // 0 = OpenMP's default
 };
 
@@ -169,7 +182,12 @@ class BlockSparseVolume {
   const std::vector<uint32_t>& brickPointers() const { return brickPtr_; }
   const std::vector<uint8_t>& bricks8() const { return b8_; }
   const std::vector<uint16_t>& bricks16() const { return b16_; }
+  /// A stored UInt8/UInt16 value s stands for s * storageScale() + storageOffset() (scale 1 but for
+  /// quantised floating-point input, VolumeBuildOptions::quantizeFloat; Float32: scale 1, offset 0).
   float storageOffset() const { return offset_; }
+  float storageScale() const { return scale_; }
+  /// The quantisation step of the stored values (0: they are the input's values exactly).
+  float quantizationStep() const { return quantized_ ? scale_ : 0.f; }
   /// UInt8/UInt16 layout: per level-0 brick, DIM 64-bit words (one per z layer, bit x + DIM y) marking
   /// its visible cells; a sample in an unmarked cell has opacity exactly 0 and is not taken.
   const std::vector<uint64_t>& cellMasks() const { return cellMask_; }
@@ -179,8 +197,20 @@ class BlockSparseVolume {
 
   /// The 8 corner values of cell (i, j, k) (x fastest: c[dx + 2 dy + 4 dz]). False when a
   /// corner's block is absent: such a cell is invisible, its samples have opacity 0.
-  bool cellCorners(int i, int j, int k, float c[8]) const {
+  bool cellCorners(int i, int j, int k, float c[8]) const { return corners<false>(i, j, k, c); }
+  /// The same in sample units, the units the marchers interpolate in: value / storageScale(), i.e.
+  /// stored + storageOffset() / storageScale() (the values themselves where the scale is 1).
+  bool cellCornersInSampleUnits(int i, int j, int k, float c[8]) const { return corners<true>(i, j, k, c); }
+
+  /// Trilinear value at continuous index position (x, y, z), clamped into the grid. False
+  /// where the cell is invisible (an absent block); `v` is then unset.
+  bool sample(double x, double y, double z, double& v) const;
+
+ private:
+  template <bool SampleUnits>
+  bool corners(int i, int j, int k, float c[8]) const {
     if (storage_ != VoxelStorage::Float32) {
+      const float scale = SampleUnits ? 1.f : scale_, offset = SampleUnits ? sampleOffset_ : offset_;
       const uint32_t b = brickPtr_[(size_t(k >> LOG2DIM) * levels_[0].n[1] + (j >> LOG2DIM)) * levels_[0].n[0] +
                                    (i >> LOG2DIM)];
       if (b == MT_NULL) return false;
@@ -188,13 +218,13 @@ class BlockSparseVolume {
       if (paired_) {
         const size_t o = size_t(b) * BRICK_BYTES8 + pairOffset(lx, ly, lz);
         for (int n = 0; n < 8; ++n)
-          c[n] = float(b8_[o + 2 * (n & 1) + ((n >> 1) & 1) + PAIR_SZ * (n >> 2)]) + offset_;
+          c[n] = float(b8_[o + 2 * (n & 1) + ((n >> 1) & 1) + PAIR_SZ * (n >> 2)]) * scale + offset;
         return true;
       }
       const size_t o = size_t(b) * BRICK_VOLUME + lx + APRON * ly + APRON * APRON * lz;
       for (int n = 0; n < 8; ++n) {
         const size_t e = o + (n & 1) + APRON * ((n >> 1) & 1) + APRON * APRON * (n >> 2);
-        c[n] = (storage_ == VoxelStorage::UInt8 ? float(b8_[e]) : float(b16_[e])) + offset_;
+        c[n] = (storage_ == VoxelStorage::UInt8 ? float(b8_[e]) : float(b16_[e])) * scale + offset;
       }
       return true;
     }
@@ -218,10 +248,7 @@ class BlockSparseVolume {
     return true;
   }
 
-  /// Trilinear value at continuous index position (x, y, z), clamped into the grid. False
-  /// where the cell is invisible (an absent block); `v` is then unset.
-  bool sample(double x, double y, double z, double& v) const;
-
+ public:
   /// Level-l node (i, j, k) of the empty-space hierarchy holds a visible cell.
   bool nodeVisible(int level, int i, int j, int k) const {
     const LevelGrid& g = levels_[level];
@@ -250,7 +277,9 @@ class BlockSparseVolume {
   int n_[3] = {1, 1, 1};
   VoxelStorage storage_ = VoxelStorage::Float32;
   bool paired_ = false;  // UInt8 bricks in rows of y pairs (see BRICK_BYTES8)
-  float offset_ = 0;
+  float offset_ = 0, scale_ = 1;
+  float sampleOffset_ = 0;  // offset_ / scale_: sample units (cellCornersInSampleUnits)
+  bool quantized_ = false;  // UInt16 bricks of quantised floating-point input
   std::vector<uint32_t> brickPtr_;
   std::vector<uint8_t> b8_;
   std::vector<uint16_t> b16_;
@@ -326,6 +355,18 @@ void checkVolumeRenderArguments(const VolumeGeometry& geo, const TransferTable& 
 /// (4 floats per entry).
 std::vector<float> stepCorrectedTable(const TransferTable& tf, double sampleDistance);
 
+/// The numbers a marcher classifies a sample with: it interpolates in sample units
+/// (BlockSparseVolume::cellCornersInSampleUnits, stored + offset), and the table's index map
+/// (TransferTable::index) is carried into those units: index = (u - tableLo) * tableScale + 0.5.
+/// Where the storage scale is 1 these are the table's own numbers, bit for bit.
+struct SampleUnits {
+  float offset, tableLo, tableScale;
+};
+inline SampleUnits sampleUnits(const BlockSparseVolume& vol, const TransferTable& tf) {
+  const float s = vol.storageScale();
+  return SampleUnits{vol.storageOffset() / s, tf.indexLo() / s, tf.indexScale() * s};
+}
+
 /// The accumulated opacity at which a ray stops, as the marchers compare it (a float; 2 = never).
 inline float earlyTerminationThreshold(const VolumeRenderOptions& opt) {
   return opt.earlyTermination >= 1 ? 2.f : static_cast<float>(std::max(0.0, opt.earlyTermination));
@@ -381,6 +422,8 @@ void BlockSparseVolume::build(const T* values, const int dims[3], const Transfer
   // shifted to unsigned by offset_, which the sampler adds back.
   storage_ = VoxelStorage::Float32;
   offset_ = 0;
+  scale_ = 1;
+  quantized_ = false;
   if (opt.compact && std::is_integral<T>::value && sizeof(T) <= 2) {
     storage_ = sizeof(T) == 1 ? VoxelStorage::UInt8 : VoxelStorage::UInt16;
     offset_ = std::is_signed<T>::value ? vmin_ : 0.f;  // stored = value - offset >= 0
@@ -394,6 +437,17 @@ void BlockSparseVolume::build(const T* values, const int dims[3], const Transfer
       storage_ = hi - offset_ <= 255.0 ? VoxelStorage::UInt8 : VoxelStorage::UInt16;
     }
   }
+  if (storage_ == VoxelStorage::Float32 && opt.compact && opt.quantizeFloat && hi > lo) {
+    // Quantised into 16 bits where the table cannot resolve the step (see quantizeFloat).
+    const double step = (hi - lo) / 65535.0, spacing = (tf.hi() - tf.lo()) / double(tf.size() - 1);
+    if (spacing >= VolumeBuildOptions::QUANTIZE_RATIO * step) {
+      storage_ = VoxelStorage::UInt16;
+      offset_ = vmin_;
+      scale_ = static_cast<float>(step);
+      quantized_ = true;
+    }
+  }
+  sampleOffset_ = offset_ / scale_;
   vox_.reset(dims[0], dims[1], dims[2], DIM, 0.f);
   stats_ = VolumeStats{};
   stats_.nonFinite = bad;
