@@ -37,18 +37,27 @@ T_PYTEST=$((SECONDS - T2))
 # `pip install .` (the engine extension; no VTK C++ SDK). The CMake build folder is kept in
 # build/pip-build, so a rerun recompiles only what changed. Needs PyPI.
 PIP_VENV=build/venv-pip
-PIP_TESTS=(tests/python/test_engine.py)
+# The Python tests that need no VTK C++ class of this project: there `import matrixtree` answers
+# through the engine extension (matrixtree._backend). The package lives in site-packages, so the
+# shared data folder is named explicitly.
+PIP_TESTS=(tests/python/test_engine.py tests/python/test_filters.py tests/python/test_mesh_changes.py
+           tests/python/test_matrixtree.py tests/python/test_cli.py tests/python/test_bench_tools.py
+           tests/python/test_readme.py)
 echo "[test] pip environment ($PIP_VENV): newest vtk + pyvista, pip install ."
 T3=$SECONDS
 pip_stage() {
   [[ -x "$PIP_VENV/bin/python" ]] || /usr/bin/python3 -m venv "$PIP_VENV" || return 1
   local pip=("$PIP_VENV/bin/python" -m pip -q --disable-pip-version-check)
-  "${pip[@]}" install --upgrade vtk pyvista pytest || return 1
+  "${pip[@]}" install --upgrade vtk pyvista pytest tqdm meshio || return 1   # tqdm, meshio: optional features the tests use
   "${pip[@]}" install --config-settings=build-dir=build/pip-build . || return 1
-  "$PIP_VENV/bin/python" -c 'import vtk, pyvista, matrixtree_engine
+  "$PIP_VENV/bin/python" -c 'import vtk, pyvista, matrixtree
+assert matrixtree.EXTENSION == "matrixtree_engine", matrixtree.EXTENSION
 print(f"[test] pip environment: vtk {vtk.vtkVersion.GetVTKVersion()}, pyvista {pyvista.__version__}, "
-      f"matrixtree_engine {matrixtree_engine.__version__} from {matrixtree_engine.__file__}")' || return 1
-  "$PIP_VENV/bin/python" -m pytest -q -p no:cacheprovider "${PIP_TESTS[@]}"
+      f"matrixtree {matrixtree.__version__} ({matrixtree.EXTENSION}) from {matrixtree.__file__}")' || return 1
+  # --pyargs: the installed package's docstring examples too (mpi.py needs mpi4py, not installed here).
+  MATRIXTREE_DATA="${MATRIXTREE_DATA:-$ROOT/../shared/data}" \
+    "$PIP_VENV/bin/python" -m pytest -q -p no:cacheprovider "${PIP_TESTS[@]}" --pyargs matrixtree \
+    --ignore-glob='*/matrixtree/mpi.py'
 }
 pip_stage 2>&1 | tee build/pytest-pip.log
 pip_rc=${PIPESTATUS[0]}

@@ -25,6 +25,8 @@ import tempfile
 import numpy as np
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
+from matrixtree._cellarrays import cell_types_array
+
 _WRITERS = {"vtkPolyData": ("vtkXMLPolyDataWriter", "vtkXMLPolyDataReader", ".vtp"),
             "vtkUnstructuredGrid": ("vtkXMLUnstructuredGridWriter", "vtkXMLUnstructuredGridReader", ".vtu"),
             "vtkImageData": ("vtkXMLImageDataWriter", "vtkXMLImageDataReader", ".vti"),
@@ -89,25 +91,39 @@ def check_cells(ds, path: str) -> None:
                   ("strip", ds.GetStrips())]
     elif ds.IsA("vtkUnstructuredGrid"):
         arrays = [("cell", ds.GetCells())]
-        types = ds.GetCellTypesArray()
+        types = cell_types_array(ds)
         if ds.GetCells() is not None and (types is None or types.GetNumberOfTuples() != ds.GetNumberOfCells()):
             raise ValueError(f"{path}: the grid has {ds.GetNumberOfCells()} cells but "
                              f"{0 if types is None else types.GetNumberOfTuples()} cell types")
     for what, cells in arrays:
         if cells is None or cells.GetNumberOfCells() == 0:
             continue
-        off = vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
-        conn = vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
-        if off[0] != 0 or off[-1] != len(conn) or np.any(np.diff(off) < 0):
-            raise ValueError(f"{path}: the {what} offsets are inconsistent (damaged file)")
-        bad = np.flatnonzero((conn < 0) | (conn >= n))
-        if bad.size:
-            cell = int(np.searchsorted(off, bad[0], side="right")) - 1
-            raise ValueError(f"{path}: {what} {cell} refers to point {int(conn[bad[0]])}, but there are {n} points")
-    faces = ds.GetFaces() if ds.IsA("vtkUnstructuredGrid") else None
-    if faces is not None and faces.GetNumberOfTuples():
-        _check_faces(vtk_to_numpy(faces).astype(np.int64), vtk_to_numpy(ds.GetFaceLocations()).astype(np.int64), n,
-                     path)
+        _check_cell_array(cells, n, what, "points", path)
+    if not ds.IsA("vtkUnstructuredGrid"):
+        return
+    if hasattr(ds, "GetFaces"):  # VTK < 9.4: one id stream per polyhedron
+        faces = ds.GetFaces()
+        if faces is not None and faces.GetNumberOfTuples():
+            _check_faces(vtk_to_numpy(faces).astype(np.int64), vtk_to_numpy(ds.GetFaceLocations()).astype(np.int64),
+                         n, path)
+        return
+    faces, locations = ds.GetPolyhedronFaces(), ds.GetPolyhedronFaceLocations()  # VTK >= 9.4: two cell arrays
+    if faces is not None and faces.GetNumberOfCells():
+        _check_cell_array(faces, n, "polyhedron face", "points", path)
+        if locations is not None:
+            _check_cell_array(locations, faces.GetNumberOfCells(), "polyhedron", "faces", path)
+
+
+def _check_cell_array(cells, n: int, what: str, items: str, path: str) -> None:
+    """ValueError unless ``cells`` (a vtkCellArray) has consistent offsets and every id in [0, n)."""
+    off = vtk_to_numpy(cells.GetOffsetsArray()).astype(np.int64)
+    conn = vtk_to_numpy(cells.GetConnectivityArray()).astype(np.int64)
+    if off[0] != 0 or off[-1] != len(conn) or np.any(np.diff(off) < 0):
+        raise ValueError(f"{path}: the {what} offsets are inconsistent (damaged file)")
+    bad = np.flatnonzero((conn < 0) | (conn >= n))
+    if bad.size:
+        cell = int(np.searchsorted(off, bad[0], side="right")) - 1
+        raise ValueError(f"{path}: {what} {cell} refers to {items[:-1]} {int(conn[bad[0]])}, but there are {n} {items}")
 
 
 def _check_faces(stream: np.ndarray, locations: np.ndarray, n: int, path: str) -> None:

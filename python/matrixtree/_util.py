@@ -14,6 +14,8 @@ from vtkmodules.util.misc import calldata_type
 from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonCore import VTK_STRING, vtkPoints
 
+from matrixtree import _checks
+
 TREES = {"octree": 0, "kdtree": 1}
 # vtkMatrixTree's TreeType: the matrix trees and the split-plane / hybrid trees (docs/trees.md).
 RAY_TREES = {"octree": 0, "kdtree": 1, "implicit-kd": 2, "bsp": 3, "hybrid": 4}
@@ -51,6 +53,32 @@ def points3(a, name: str) -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise ValueError(f"{name} must have shape (N, 3), got {arr.shape}")
     return arr
+
+
+def segments(origins, directions, ends, length: float):
+    """Segment starts and ends as (N, 3) arrays: ``origins`` to ``ends``, or to
+    ``origins + length * directions`` (exactly one of the two; ValueError otherwise)."""
+    o = points3(origins, "origins")
+    if (directions is None) == (ends is None):
+        raise ValueError("give exactly one of directions and ends")
+    if ends is not None:
+        e = points3(ends, "ends")
+    else:
+        e = o + _checks.real(length, "length", 0.0, lo_open=True) * points3(directions, "directions")
+    if e.shape != o.shape:
+        raise ValueError(f"origins {o.shape} and ends/directions {e.shape} differ in shape")
+    return o, np.ascontiguousarray(e)
+
+
+def bounds6(bounds) -> list:
+    """``(xmin, xmax, ymin, ymax, zmin, zmax)`` as six floats; ValueError otherwise."""
+    try:
+        b = np.asarray(bounds, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        b = np.zeros(0)
+    if b.shape != (6,) or np.isnan(b).any():
+        raise ValueError(f"bounds must be (xmin, xmax, ymin, ymax, zmin, zmax), got {bounds!r}")
+    return b.tolist()
 
 
 def vtk_points(arr: np.ndarray) -> vtkPoints:

@@ -1,4 +1,9 @@
-"""Thin numpy-facing wrappers over the VTK classes ``vtkMatrixTree`` and ``vtkMatrixTreeRayCaster``."""
+"""Thin numpy-facing wrappers over the VTK classes ``vtkMatrixTree`` and ``vtkMatrixTreeRayCaster``.
+
+Where the VTK module does not import, ``MatrixTree``, ``render`` and ``tree_mesh`` are the
+engine extension's (``matrixtree._engine``, bound at the end of this module), with the same
+arguments and answers.
+"""
 
 from __future__ import annotations
 
@@ -9,9 +14,11 @@ from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray, vtkIntArray
 from vtkmodules.vtkCommonDataModel import vtkDataSet, vtkPolyData
 
-from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
+from matrixtree._backend import VTK_MODULE
 
-from matrixtree import _checks
+if VTK_MODULE:
+    from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
+from matrixtree import _checks, _meshstate
 from matrixtree._readers import check_not_empty, read_obj, read_ply
 from matrixtree._util import (RAY_TREES, SPLIT_TREES, VtkErrors, check_backend, existing_file, points3, read_by_extension,
                               tree_type, vtk_points)
@@ -107,6 +114,18 @@ def _triangulated(out: vtkPolyData, merge_points: bool) -> vtkPolyData:
     return result
 
 
+def _check_tree_settings(tree, height, block_size, leaf_scale, threads):
+    """(tree id, height, leaf_scale, threads) of MatrixTree's settings, checked; ValueError for
+    an unknown tree or a setting out of range."""
+    tree_id = tree_type(tree, RAY_TREES)
+    height = _checks.integer(height, "height", 0, 63, "0 = automatic")
+    if block_size not in (1, 2, 4, 8, 16, 32):
+        raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
+    if leaf_scale is not None:
+        leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
+    return tree_id, height, leaf_scale, _checks.threads(threads)
+
+
 def _as_polydata(mesh) -> vtkPolyData:
     if isinstance(mesh, vtkPolyData):
         return mesh
@@ -175,7 +194,7 @@ class MatrixTree:
     >>> mesh = matrixtree.scenes.default_scene(resolution=0.3)
     >>> tree = matrixtree.MatrixTree(mesh, tree="kdtree")
     >>> t, cell = tree.intersect([[0.0, 5.0, 0.0]], [[0.0, -1.0, 0.0]])
-    >>> bool(np.isfinite(t[0])) and cell[0] >= 0
+    >>> bool(np.isfinite(t[0]) and cell[0] >= 0)
     True
     """
 
@@ -184,13 +203,7 @@ class MatrixTree:
                  backend: str = "cpu", device: str | None = None):
         self.mesh = _as_polydata(mesh)
         backend_id = _backend(backend)
-        tree_id = tree_type(tree, RAY_TREES)
-        height = _checks.integer(height, "height", 0, 63, "0 = automatic")
-        if block_size not in (1, 2, 4, 8, 16, 32):
-            raise ValueError(f"block_size must be a power of two in [1, 32], got {block_size!r}")
-        if leaf_scale is not None:
-            leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
-        threads = _checks.threads(threads)
+        tree_id, height, leaf_scale, threads = _check_tree_settings(tree, height, block_size, leaf_scale, threads)
         if tree == "hybrid" and backend_id == vtkMatrixTree.OPENCL:
             raise ValueError("the hybrid tree has no OpenCL walk: use backend='cpu'")
         self._tree = vtkMatrixTree()
@@ -213,9 +226,12 @@ class MatrixTree:
         return self._tree
 
     def build(self) -> "MatrixTree":
-        """(Re)build the tree now, e.g. after the mesh's points moved. Returns self.
+        """(Re)build the tree now. Queries rebuild by themselves when the mesh changed (points
+        moved, even in place through a numpy view; cells replaced; see matrixtree._meshstate).
+        Returns self.
 
         RuntimeError with the engine's reason if the build fails; every query then raises it too."""
+        self._state = _meshstate.fingerprint(self.mesh)
         with VtkErrors(self._tree) as errors:
             ok = self._tree.Build()
         if not ok:
@@ -226,8 +242,11 @@ class MatrixTree:
         return self
 
     def _query(self, method, *args):
-        """``vtk_tree.<method>(*args)``; RuntimeError with VTK's message if it reports one (a
-        failed build: every query raises its reason)."""
+        """``vtk_tree.<method>(*args)`` on a tree that matches the mesh (rebuilt if it changed);
+        RuntimeError with VTK's message if it reports one (a failed build: every query raises
+        its reason)."""
+        if _meshstate.fingerprint(self.mesh) != self._state:
+            self.build()
         with VtkErrors(self._tree) as errors:
             out = getattr(self._tree, method)(*args)
         errors.raise_last(RuntimeError)
@@ -333,6 +352,31 @@ _TRAVERSALS = {"restart": 0, "stack": 1, "shortstack": 2}
 _TESTS = {"moller-trumbore": 0, "mt": 0, "watertight": 1}
 
 
+def _check_render_settings(size, traversal: str, triangle_test: str, camera, tree: str, backend: str, height,
+                           threads, leaf_scale):
+    """(width, height, camera, tree height, threads, leaf_scale) of :func:`render`'s arguments,
+    checked; ValueError for a bad size, setting, traversal, triangle test or camera, or a
+    CPU-only tree asked for on another backend."""
+    w, h = _checks.image_size(size, _RENDER_BYTES_PER_PIXEL)
+    height = _checks.integer(height, "height", 0, 63, "0 = automatic")
+    threads = _checks.threads(threads)
+    if leaf_scale is not None:
+        leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
+    if camera is not None:
+        if len(camera) not in (3, 4):
+            raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
+        camera = _checks.camera(*camera, up_along_view_ok=True)
+    if tree != "sah":
+        tree_type(tree, {**RAY_TREES, "sah": None})  # ValueError naming every tree
+    if traversal not in _TRAVERSALS:
+        raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
+    if triangle_test not in _TESTS:
+        raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
+    if tree in ("sah", "hybrid") and backend != "cpu":
+        raise ValueError(f"the {tree!r} tree runs on the CPU only: use backend='cpu'")
+    return w, h, camera, height, threads, leaf_scale
+
+
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
            shadows: bool = True, threads: int = 0, caster: vtkMatrixTreeRayCaster | None = None,
            backend: str = "cpu", traversal: str = "stack", triangle_test: str = "moller-trumbore",
@@ -395,23 +439,8 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     (48, 64, 3)
     """
     pd = _as_polydata(mesh)
-    w, h = _checks.image_size(size, _RENDER_BYTES_PER_PIXEL)
-    height = _checks.integer(height, "height", 0, 63, "0 = automatic")
-    threads = _checks.threads(threads)
-    if leaf_scale is not None:
-        leaf_scale = _checks.real(leaf_scale, "leaf_scale", 1e-3, 1e3, meaning="median triangle extents")
-    if camera is not None:
-        if len(camera) not in (3, 4):
-            raise ValueError("camera must be [position, focal_point, view_up] or with a view angle as 4th item")
-        camera = _checks.camera(*camera, up_along_view_ok=True)
-    if tree != "sah":
-        tree_type(tree, {**RAY_TREES, "sah": None})  # ValueError naming every tree
-    if traversal not in _TRAVERSALS:
-        raise ValueError(f"traversal must be one of {sorted(_TRAVERSALS)}, got {traversal!r}")
-    if triangle_test not in _TESTS:
-        raise ValueError(f"triangle_test must be 'moller-trumbore' or 'watertight', got {triangle_test!r}")
-    if tree in ("sah", "hybrid") and backend != "cpu":
-        raise ValueError(f"the {tree!r} tree runs on the CPU only: use backend='cpu'")
+    w, h, camera, height, threads, leaf_scale = _check_render_settings(size, traversal, triangle_test, camera, tree,
+                                                                       backend, height, threads, leaf_scale)
     rc = caster if caster is not None else vtkMatrixTreeRayCaster()
     if tree == "sah":
         rc.SetAcceleratorToSAHKdTree()
@@ -612,6 +641,35 @@ def save_heatmap(counts: np.ndarray, path: str | os.PathLike, vmax: float, cmap:
     return save_rgb(rgb, path)
 
 
+def _level_range(levels):
+    """(lo, hi, leaves_only) of :func:`tree_mesh`'s ``levels``: hi = -1 is the leaf level;
+    ``levels=-1`` asks for the leaves alone (0, -1, True). ValueError for anything else."""
+    if levels is None:
+        return 0, -1, False
+    if isinstance(levels, (int, np.integer)):
+        lo, hi = int(levels), int(levels)
+    else:
+        lo, hi = (int(v) for v in levels)
+    if lo < 0 and hi == lo:
+        return 0, -1, True
+    if lo < 0 or (hi < lo and hi != -1):
+        raise ValueError(f"levels must be None, a level >= 0 (or -1 for the leaves), or (lo, hi) with "
+                         f"0 <= lo <= hi (hi = -1: the leaves); got {levels!r}")
+    return lo, hi, False
+
+
+def _tree_mesh_input(mesh) -> vtkDataSet:
+    """:func:`tree_mesh`'s mesh as a data set with cells (a path is read); TypeError or
+    ValueError otherwise."""
+    if isinstance(mesh, (str, os.PathLike)):
+        mesh = read_mesh(mesh)
+    if not isinstance(mesh, vtkDataSet):
+        raise TypeError(f"tree_mesh needs a VTK/pyvista data set or a mesh file path, got {type(mesh).__name__}")
+    if mesh.GetNumberOfCells() == 0:
+        raise ValueError("tree_mesh: the data set has no cells (nothing to build a tree over)")
+    return mesh
+
+
 def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_overlap: bool = False):
     """The tree over a mesh or grid for plotting: a matrix tree's nodes as boxes (one voxel per
     existing node), or the split planes of an implicit kd-tree, BSP tree or hybrid tree.
@@ -657,38 +715,19 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
     from matrixtree_vtk import vtkMatrixTreeRepresentation
 
     tree_id = tree_type(tree, RAY_TREES)
-    if isinstance(mesh, (str, os.PathLike)):
-        mesh = read_mesh(mesh)
-    if not isinstance(mesh, vtkDataSet):
-        raise TypeError(f"tree_mesh needs a VTK/pyvista data set or a mesh file path, got {type(mesh).__name__}")
-    if mesh.GetNumberOfCells() == 0:
-        raise ValueError("tree_mesh: the data set has no cells (nothing to build a tree over)")
+    mesh = _tree_mesh_input(mesh)
     if tree_id >= RAY_TREES["implicit-kd"]:
         mesh = _as_polydata(mesh)
     rep = vtkMatrixTreeRepresentation()
     rep.SetTreeType(tree_id)
     rep.SetHeight(int(height))
     rep.SetExactOverlap(bool(exact_overlap))
-    if levels is None:
-        lo, hi = 0, -1
-    elif isinstance(levels, (int, np.integer)):
-        lo, hi = int(levels), int(levels)
-    else:
-        lo, hi = (int(v) for v in levels)
-    if lo < 0 and hi == lo:  # levels=-1: the leaves only
-        if tree in SPLIT_TREES:
-            raise ValueError(f"levels=-1: a {tree!r} tree draws its inner nodes' planes, its leaves have none; "
-                             "give a level or (lo, hi)")
-        rep.SetMinLevel(0)
-        rep.SetMaxLevel(-1)
-        leaves_only = True
-    else:
-        if lo < 0 or (hi < lo and hi != -1):
-            raise ValueError(f"levels must be None, a level >= 0 (or -1 for the leaves), or (lo, hi) with "
-                             f"0 <= lo <= hi (hi = -1: the leaves); got {levels!r}")
-        rep.SetMinLevel(lo)
-        rep.SetMaxLevel(hi)
-        leaves_only = False
+    lo, hi, leaves_only = _level_range(levels)
+    if leaves_only and tree in SPLIT_TREES:
+        raise ValueError(f"levels=-1: a {tree!r} tree draws its inner nodes' planes, its leaves have none; "
+                         "give a level or (lo, hi)")
+    rep.SetMinLevel(lo)
+    rep.SetMaxLevel(hi)
     rep.SetInputData(mesh)
     with VtkErrors(rep) as errors:
         rep.Update()
@@ -703,3 +742,11 @@ def tree_mesh(mesh, tree: str = "octree", height: int = 0, levels=None, exact_ov
         out = out.extract_cells(np.flatnonzero(keep))
         out.field_data["tree_height"] = [h]
     return out
+
+
+if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process
+    from matrixtree import _engine  # noqa: E402
+
+    for _name in ("MatrixTree", "render", "tree_mesh"):
+        _engine.adopt_docs(globals()[_name], getattr(_engine, _name))
+    from matrixtree._engine import MatrixTree, render, tree_mesh  # noqa: E402, F811

@@ -4,19 +4,26 @@ A numpy front end to ``vtkMatrixTreeLocator``: one call answers a whole array of
 segments, OpenMP-parallel in C++ (never a Python loop per point). Answers equal the locator's
 one-point calls, which match VTK's own locators. ``backend="opencl"`` moves point location
 (``locate``) onto an OpenCL device, with the same answers.
+
+Where the VTK module does not import, ``CellLocator``, ``cached_memory`` and
+``release_cached_memory`` are the engine extension's (``matrixtree._engine``, bound at the end of
+this module; CPU only, linear cells), with the same arguments and answers.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdTypeArray
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkIdList, vtkIdTypeArray, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkDataSet
 
-from matrixtree_vtk import vtkMatrixTreeLocator
+from matrixtree._backend import VTK_MODULE
 
-from matrixtree import _checks
-from matrixtree._util import VtkErrors, check_backend, points3, tree_type, vtk_points
+if VTK_MODULE:
+    from matrixtree_vtk import vtkMatrixTreeLocator
+
+from matrixtree import _checks, _meshstate
+from matrixtree._util import VtkErrors, bounds6, check_backend, points3, segments, tree_type, vtk_points
 
 __all__ = ["CellLocator", "cached_memory", "release_cached_memory"]
 
@@ -41,7 +48,21 @@ def release_cached_memory() -> int:
     return int(vtkMatrixTreeLocator.ReleaseCachedMemory())
 
 
-class CellLocator:
+def _segment_meets_boxes(a, b, lo, hi) -> np.ndarray:
+    """Whether the segment a -> b meets each box [lo, hi] (the slab test, closed boxes)."""
+    d = b - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0, t1 = (lo - a) / d, (hi - a) / d
+    near, far = np.minimum(t0, t1), np.maximum(t0, t1)
+    # An axis the segment runs parallel to: inside the slab for all t, or for none.
+    par = d == 0
+    inside = (a >= lo) & (a <= hi)
+    near = np.where(par, np.where(inside, -np.inf, np.inf), near)
+    far = np.where(par, np.where(inside, np.inf, -np.inf), far)
+    return np.maximum(near.max(axis=1), 0.0) <= np.minimum(far.min(axis=1), 1.0)
+
+
+class CellLocator(_meshstate.RebuildOnChange):
     """Point location, ray (segment) casting and closest points on the cells of a mesh.
 
     Parameters
@@ -61,7 +82,7 @@ class CellLocator:
         finishes what the kernel leaves to VTK; the tree is built on the CPU and copied to the
         device once per build. Cell ids are identical to ``"cpu"``, pcoords and weights equal.
         Without an OpenCL device ``locate`` raises RuntimeError (no silent fallback).
-        ``trace`` and ``closest_points`` always run on the CPU.
+        The other queries always run on the CPU.
     device : str, optional
         OpenCL device selector (``backend="opencl"`` only): ``"P:D"`` (platform P, device D), a
         device number, or part of a device name; default: ``$MATRIXTREE_OPENCL_DEVICE``, else the
@@ -76,11 +97,14 @@ class CellLocator:
         The build failed; the message is the engine's reason: a coordinate that is NaN, inf or
         beyond +-1e30, points spanning less than 1e-30, a cell referring to a missing point, or a
         ``height`` whose leaf level would need more than 1 GiB. Should a later rebuild fail (the
-        data set changed, then ``vtk_locator.BuildLocator()``), every query raises RuntimeError
+        data set changed), every query raises RuntimeError
         with that same reason.
 
     Notes
     -----
+    Every query first checks whether the data set changed since the tree was built (points
+    moved, even in place through a numpy view; cells or points replaced; ``Modified()`` called:
+    see ``matrixtree._meshstate``) and rebuilds the tree if so; ``builds`` counts the builds.
     Query points (and segment ends) that are NaN or infinite are not an error: such a point
     lies in no cell (-1), a segment through one hits nothing, and it has no closest point
     (cell -1, point NaN, squared distance inf).
@@ -95,7 +119,7 @@ class CellLocator:
     >>> from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
     >>> from vtkmodules.vtkFiltersGeneral import vtkDataSetTriangleFilter
     >>> src = vtkRTAnalyticSource(); src.SetWholeExtent(0, 4, 0, 4, 0, 4)
-    >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); tets.Update()
+    >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); _ = tets.Update()
     >>> loc = CellLocator(tets.GetOutput())
     >>> ids = loc.locate([[0.5, 0.5, 0.5], [100.0, 0.0, 0.0]])
     >>> bool(ids[0] >= 0), int(ids[1])
@@ -123,13 +147,19 @@ class CellLocator:
                 self.vtk_locator.SetOpenCLDevice(str(device))
         self.backend = backend
         self.vtk_locator.SetDataSet(dataset)
+        self.builds = 0
+        self._build()
+
+    def _build_tree(self) -> None:
         with VtkErrors(self.vtk_locator) as errors:
-            self.vtk_locator.BuildLocator()
+            self.vtk_locator.ForceBuildLocator()
         errors.raise_last(RuntimeError)
 
     def _query(self, method, *args) -> None:
-        """Call ``vtk_locator.<method>(*args)``; RuntimeError with VTK's message if it reports an
-        error (a failed build: every query then raises its reason)."""
+        """Call ``vtk_locator.<method>(*args)`` on a tree that matches the data set; RuntimeError
+        with VTK's message if it reports an error (a failed build: every query then raises its
+        reason)."""
+        self._sync()
         with VtkErrors(self.vtk_locator) as errors:
             getattr(self.vtk_locator, method)(*args)
         opencl = self.backend == "opencl" and method == "FindCells"
@@ -164,7 +194,7 @@ class CellLocator:
         >>> from vtkmodules.vtkImagingCore import vtkRTAnalyticSource
         >>> from vtkmodules.vtkFiltersGeneral import vtkDataSetTriangleFilter
         >>> src = vtkRTAnalyticSource(); src.SetWholeExtent(0, 4, 0, 4, 0, 4)
-        >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); tets.Update()
+        >>> tets = vtkDataSetTriangleFilter(); tets.SetInputConnection(src.GetOutputPort()); _ = tets.Update()
         >>> ids, w = CellLocator(tets.GetOutput()).locate([[0.1, 0.2, 0.1]], return_weights=True)
         >>> bool(ids[0] >= 0), round(float(w[0].sum()), 12)
         (True, 1.0)
@@ -212,21 +242,13 @@ class CellLocator:
         Examples
         --------
         >>> from vtkmodules.vtkFiltersSources import vtkSphereSource
-        >>> s = vtkSphereSource(); s.SetThetaResolution(64); s.SetPhiResolution(64); s.Update()
+        >>> s = vtkSphereSource(); s.SetThetaResolution(64); s.SetPhiResolution(64); _ = s.Update()
         >>> t, ids, x = CellLocator(s.GetOutput()).trace([[0, 0, 0], [2, 2, 2]], [[1, 0, 0], [1, 0, 0]])
         >>> bool(abs(x[0, 0] - 0.5) < 1e-2), bool(ids[1] == -1 and np.isinf(t[1]))
         (True, True)
         """
-        o = points3(origins, "origins")
-        if (directions is None) == (ends is None):
-            raise ValueError("give exactly one of directions and ends")
+        o, e = segments(origins, directions, ends, length)
         tolerance = _checks.real(tolerance, "tolerance", 0.0)
-        if ends is not None:
-            e = points3(ends, "ends")
-        else:
-            e = o + _checks.real(length, "length", 0.0, lo_open=True) * points3(directions, "directions")
-        if e.shape != o.shape:
-            raise ValueError(f"origins {o.shape} and ends/directions {e.shape} differ in shape")
         t, ids, x = vtkDoubleArray(), vtkIdTypeArray(), vtkDoubleArray()
         self._query("IntersectSegments", numpy_to_vtk(o, deep=True), numpy_to_vtk(e, deep=True), tolerance,
                     t, ids, x)
@@ -253,7 +275,7 @@ class CellLocator:
         Examples
         --------
         >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
-        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); plane.Update()  # z = 0, |x|, |y| <= 0.5
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); _ = plane.Update()  # z = 0, |x|, |y| <= 0.5
         >>> cp, ids, d2 = CellLocator(plane.GetOutput()).closest_points([[0.1, 0.2, 3.0]])
         >>> bool(np.allclose(cp[0], [0.1, 0.2, 0.0])), float(d2[0])
         (True, 9.0)
@@ -264,8 +286,121 @@ class CellLocator:
         return (vtk_to_numpy(cp).reshape(-1, 3).copy(), vtk_to_numpy(ids).astype(np.int64, copy=True),
                 vtk_to_numpy(d2).copy())
 
+    def trace_all(self, origins, directions=None, *, ends=None, length: float = 1.0):
+        """Every cell each segment meets, sorted along it (VTK's ``IntersectWithLine`` with a point
+        and an id list; tolerance 0).
+
+        Parameters
+        ----------
+        origins, directions, ends, length
+            The segments, as in :meth:`trace`.
+
+        Returns
+        -------
+        offsets : numpy.ndarray, shape (n + 1,)
+            Segment ``i``'s hits are entries ``offsets[i]:offsets[i + 1]`` of the arrays below.
+        t : numpy.ndarray
+            Hit parameters along their segments, in [0, 1], ascending per segment.
+        cell_ids : numpy.ndarray
+            The cells hit, each once per segment (at its first meeting).
+        points : numpy.ndarray, shape (offsets[-1], 3)
+            Hit points.
+
+        Examples
+        --------
+        >>> from vtkmodules.vtkFiltersSources import vtkSphereSource
+        >>> s = vtkSphereSource(); s.SetThetaResolution(32); s.SetPhiResolution(32); _ = s.Update()
+        >>> off, t, ids, x = CellLocator(s.GetOutput()).trace_all([[-2, 0.01, 0.02]], ends=[[2, 0.01, 0.02]])
+        >>> off.tolist(), bool(x[0, 0] < 0 < x[1, 0])
+        ([0, 2], True)
+        """
+        o, e = segments(origins, directions, ends, length)
+        self._sync()
+        # The VTK class answers one segment per call; the engine extension's path batches them.
+        hit_points, hit_ids = vtkPoints(), vtkIdList()
+        hit_points.SetDataTypeToDouble()
+        counts, ids, xs = np.zeros(len(o), np.int64), [], []
+        for i in range(len(o)):
+            self.vtk_locator.IntersectWithLine(o[i], e[i], hit_points, hit_ids)
+            counts[i] = hit_ids.GetNumberOfIds()
+            if counts[i]:
+                ids.append([hit_ids.GetId(k) for k in range(counts[i])])
+                xs.append(vtk_to_numpy(hit_points.GetData()).astype(np.float64))
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        ids = np.concatenate(ids).astype(np.int64) if ids else np.zeros(0, np.int64)
+        x = np.concatenate(xs).reshape(-1, 3) if xs else np.zeros((0, 3))
+        seg = np.repeat(np.arange(len(o)), counts)
+        d = e[seg] - o[seg]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.einsum("ij,ij->i", x - o[seg], d) / np.einsum("ij,ij->i", d, d)
+        return offsets, t, ids, x
+
+    def cells_within_bounds(self, bounds) -> np.ndarray:
+        """The cells whose bounding boxes meet ``bounds`` (VTK's ``FindCellsWithinBounds``),
+        ascending.
+
+        Parameters
+        ----------
+        bounds : sequence of 6 float
+            ``(xmin, xmax, ymin, ymax, zmin, zmax)``.
+
+        Returns
+        -------
+        numpy.ndarray of int64
+
+        Examples
+        --------
+        >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); _ = plane.Update()   # 16 squares
+        >>> CellLocator(plane.GetOutput()).cells_within_bounds([-0.5, -0.3, -0.5, -0.3, -1, 1]).tolist()
+        [0]
+        """
+        b = bounds6(bounds)
+        self._sync()
+        out = vtkIdList()
+        self.vtk_locator.FindCellsWithinBounds(b, out)
+        return np.sort(np.array([out.GetId(k) for k in range(out.GetNumberOfIds())], dtype=np.int64))
+
+    def cells_along_line(self, pointa, pointb, tolerance: float = 0.0) -> np.ndarray:
+        """The cells whose bounding boxes (grown by ``tolerance``) the segment from ``pointa``
+        to ``pointb`` crosses (VTK's ``FindCellsAlongLine``), ascending.
+
+        Examples
+        --------
+        >>> from vtkmodules.vtkFiltersSources import vtkPlaneSource
+        >>> plane = vtkPlaneSource(); plane.SetResolution(4, 4); _ = plane.Update()   # 16 squares
+        >>> CellLocator(plane.GetOutput()).cells_along_line([-0.4, -0.4, -1], [-0.4, -0.4, 1]).tolist()
+        [0]
+        """
+        a, b = points3(pointa, "pointa")[0], points3(pointb, "pointb")[0]
+        tol = _checks.real(tolerance, "tolerance", 0.0)
+        self._sync()
+        # The VTK class lists the cells of the leaves the segment crosses (without a tolerance);
+        # the answer is those of them whose boxes, grown by the tolerance, the segment crosses.
+        out = vtkIdList()
+        if tol > 0:
+            box = np.column_stack([np.minimum(a, b) - tol, np.maximum(a, b) + tol]).ravel()
+            self.vtk_locator.FindCellsWithinBounds(box.tolist(), out)
+        else:
+            self.vtk_locator.FindCellsAlongLine(a, b, 0.0, out)
+        ids = np.sort(np.array([out.GetId(k) for k in range(out.GetNumberOfIds())], dtype=np.int64))
+        box = [0.0] * 6
+        lo, hi = np.empty((len(ids), 3)), np.empty((len(ids), 3))
+        for k, c in enumerate(ids):
+            self.dataset.GetCellBounds(int(c), box)
+            lo[k], hi[k] = box[0::2], box[1::2]
+        return ids[_segment_meets_boxes(a, b, lo - tol, hi + tol)]
+
     def __repr__(self) -> str:
         tree = "kdtree" if self.vtk_locator.GetTreeType() == 1 else "octree"
         return (f"CellLocator({self.dataset.GetClassName()}, {self.dataset.GetNumberOfCells()} cells, {tree}, "
                 f"height {self.vtk_locator.GetTreeHeight()}, {self.vtk_locator.GetMemorySize()} bytes, "
                 f"backend {self.backend})")
+
+
+if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process
+    from matrixtree import _engine  # noqa: E402
+
+    for _name in ("CellLocator", "cached_memory", "release_cached_memory"):
+        _engine.adopt_docs(globals()[_name], getattr(_engine, _name))
+    from matrixtree._engine import CellLocator, cached_memory, release_cached_memory  # noqa: E402, F811

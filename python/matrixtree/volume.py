@@ -5,18 +5,24 @@ scalars (and float scalars holding only integers) as 8^3-cell bricks with a 1-vo
 own width, other scalars as a block-sparse matrix of 8x8x8-voxel float blocks; it skips invisible
 space through the matrix-tree levels above them. Rays are marched on the CPU (OpenMP) or, with
 ``backend="opencl"``, by OpenCL kernels over the same storage. This module converts and delegates.
+Where the VTK module does not import, ``render_volume`` is the engine extension's
+(``matrixtree._engine``, bound at the end of this module; CPU only), with the same answers.
 """
 
 from __future__ import annotations
 
 import os
+from types import SimpleNamespace
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import vtkImageData, vtkPiecewiseFunction
 from vtkmodules.vtkRenderingCore import vtkCamera, vtkColorTransferFunction
 
-from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
+from matrixtree._backend import VTK_MODULE
+
+if VTK_MODULE:
+    from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
 
 from matrixtree import _checks
 from matrixtree._readers import check_not_empty
@@ -198,6 +204,55 @@ def frame_camera(volume, azimuth: float = 30.0, elevation: float = 20.0, view_an
     return cam
 
 
+def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
+                           opacity_unit_distance, image_sample_distance, early_termination, threads):
+    """:func:`render_volume`'s inputs checked and completed, for both backends: a namespace with
+    image, width, height, color, opacity, camera and the numeric settings with their defaults
+    filled in. ValueError for the bad input :func:`render_volume`'s docstring lists."""
+    image = _as_image(volume, spacing, origin)
+    s = image.GetPointData().GetScalars()
+    if image.GetNumberOfPoints() == 0 or s is None:
+        raise ValueError("the volume is empty or has no point scalars")
+    if s.GetNumberOfComponents() != 1:
+        raise ValueError(f"the volume has {s.GetNumberOfComponents()}-component scalars; pass one component")
+    dims = image.GetDimensions()
+    if s.GetNumberOfTuples() != image.GetNumberOfPoints():
+        raise ValueError(f"the volume's scalar array has {s.GetNumberOfTuples()} values for "
+                         f"{dims[0]}x{dims[1]}x{dims[2]} = {image.GetNumberOfPoints()} points: one per point is needed")
+    if min(dims) < 2:
+        raise ValueError(f"the volume is {dims[0]}x{dims[1]}x{dims[2]} points; at least 2 along every axis are needed")
+    sp = np.abs(np.array(image.GetSpacing(), dtype=float))
+    if not np.all(np.isfinite(sp)) or np.any(sp == 0):
+        raise ValueError(f"spacing must be finite and non-zero, got {tuple(image.GetSpacing())}")
+    w, h = _checks.image_size(size, _VOLUME_BYTES_PER_PIXEL)
+    diagonal = float(np.linalg.norm((np.array(dims) - 1) * sp))
+    if sample_distance is None:
+        sample_distance = 0.5 * sp.min()
+    sample_distance = _checks.real(sample_distance, "sample_distance", 0.0, lo_open=True, meaning="world units")
+    if diagonal / sample_distance > _checks.MAX_SAMPLES_PER_RAY:
+        raise ValueError(f"sample_distance {sample_distance!r} asks for {diagonal / sample_distance:.3g} samples "
+                         f"across the volume's diagonal ({diagonal:.6g}); at most 2^20 per ray are supported: "
+                         f"use sample_distance >= {diagonal / _checks.MAX_SAMPLES_PER_RAY:.3g}")
+    if opacity_unit_distance is None:
+        opacity_unit_distance = sp.mean()
+    opacity_unit_distance = _checks.real(opacity_unit_distance, "opacity_unit_distance", 0.0, lo_open=True,
+                                         meaning="world units")
+    image_sample_distance = _checks.real(image_sample_distance, "image_sample_distance", 1.0, 32.0)
+    early_termination = _checks.real(early_termination, "early_termination", 0.0, 1.0, meaning="opacity")
+    threads = _checks.threads(threads)
+    if color is None or opacity is None:
+        dc, do = default_transfer_functions(image)
+        color = color if color is not None else dc
+        opacity = opacity if opacity is not None else do
+    cam = camera if camera is not None else frame_camera(image)
+    _checks.camera(cam.GetPosition(), cam.GetFocalPoint(), cam.GetViewUp(),
+                   None if cam.GetParallelProjection() else cam.GetViewAngle())
+    return SimpleNamespace(image=image, width=w, height=h, color=color, opacity=opacity, camera=cam,
+                           sample_distance=sample_distance, opacity_unit_distance=opacity_unit_distance,
+                           image_sample_distance=image_sample_distance, early_termination=early_termination,
+                           threads=threads)
+
+
 def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=None, spacing=None, origin=None,
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
@@ -282,44 +337,11 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     True
     """
     check_backend(backend)
-    image = _as_image(volume, spacing, origin)
-    s = image.GetPointData().GetScalars()
-    if image.GetNumberOfPoints() == 0 or s is None:
-        raise ValueError("the volume is empty or has no point scalars")
-    if s.GetNumberOfComponents() != 1:
-        raise ValueError(f"the volume has {s.GetNumberOfComponents()}-component scalars; pass one component")
-    dims = image.GetDimensions()
-    if s.GetNumberOfTuples() != image.GetNumberOfPoints():
-        raise ValueError(f"the volume's scalar array has {s.GetNumberOfTuples()} values for "
-                         f"{dims[0]}x{dims[1]}x{dims[2]} = {image.GetNumberOfPoints()} points: one per point is needed")
-    if min(dims) < 2:
-        raise ValueError(f"the volume is {dims[0]}x{dims[1]}x{dims[2]} points; at least 2 along every axis are needed")
-    sp = np.abs(np.array(image.GetSpacing(), dtype=float))
-    if not np.all(np.isfinite(sp)) or np.any(sp == 0):
-        raise ValueError(f"spacing must be finite and non-zero, got {tuple(image.GetSpacing())}")
-    w, h = _checks.image_size(size, _VOLUME_BYTES_PER_PIXEL)
-    diagonal = float(np.linalg.norm((np.array(dims) - 1) * sp))
-    if sample_distance is None:
-        sample_distance = 0.5 * sp.min()
-    sample_distance = _checks.real(sample_distance, "sample_distance", 0.0, lo_open=True, meaning="world units")
-    if diagonal / sample_distance > _checks.MAX_SAMPLES_PER_RAY:
-        raise ValueError(f"sample_distance {sample_distance!r} asks for {diagonal / sample_distance:.3g} samples "
-                         f"across the volume's diagonal ({diagonal:.6g}); at most 2^20 per ray are supported: "
-                         f"use sample_distance >= {diagonal / _checks.MAX_SAMPLES_PER_RAY:.3g}")
-    if opacity_unit_distance is None:
-        opacity_unit_distance = sp.mean()
-    opacity_unit_distance = _checks.real(opacity_unit_distance, "opacity_unit_distance", 0.0, lo_open=True,
-                                         meaning="world units")
-    image_sample_distance = _checks.real(image_sample_distance, "image_sample_distance", 1.0, 32.0)
-    early_termination = _checks.real(early_termination, "early_termination", 0.0, 1.0, meaning="opacity")
-    threads = _checks.threads(threads)
-    if color is None or opacity is None:
-        dc, do = default_transfer_functions(image)
-        color = color if color is not None else dc
-        opacity = opacity if opacity is not None else do
-    cam = camera if camera is not None else frame_camera(image)
-    _checks.camera(cam.GetPosition(), cam.GetFocalPoint(), cam.GetViewUp(),
-                   None if cam.GetParallelProjection() else cam.GetViewAngle())
+    v = _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
+                               opacity_unit_distance, image_sample_distance, early_termination, threads)
+    image, w, h, color, opacity, cam = v.image, v.width, v.height, v.color, v.opacity, v.camera
+    sample_distance, opacity_unit_distance = v.sample_distance, v.opacity_unit_distance
+    image_sample_distance, early_termination, threads = v.image_sample_distance, v.early_termination, v.threads
 
     caster = vtkMatrixTreeVolumeRayCaster()
     caster.SetInputData(image)
@@ -368,3 +390,11 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         "device": caster.GetOpenCLDeviceName() if backend == "opencl" else "",
     }
     return img, stats
+
+
+if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process
+    from matrixtree import _engine  # noqa: E402
+
+    for _name in ("render_volume",):
+        _engine.adopt_docs(globals()[_name], getattr(_engine, _name))
+    from matrixtree._engine import render_volume  # noqa: E402, F811
