@@ -24,7 +24,7 @@ from matrixtree._backend import VTK_MODULE
 if VTK_MODULE:
     from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
 
-from matrixtree import _checks
+from matrixtree import _checks, _quality
 from matrixtree._readers import check_not_empty
 from matrixtree._util import VtkErrors, check_backend, existing_file, read_by_extension
 
@@ -205,7 +205,7 @@ def frame_camera(volume, azimuth: float = 30.0, elevation: float = 20.0, view_an
 
 
 def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
-                           opacity_unit_distance, image_sample_distance, early_termination, threads):
+                           opacity_unit_distance, image_sample_distance, early_termination, threads, quality=None):
     """:func:`render_volume`'s inputs checked and completed, for both backends: a namespace with
     image, width, height, color, opacity, camera and the numeric settings with their defaults
     filled in. ValueError for the bad input :func:`render_volume`'s docstring lists."""
@@ -226,8 +226,10 @@ def _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin
         raise ValueError(f"spacing must be finite and non-zero, got {tuple(image.GetSpacing())}")
     w, h = _checks.image_size(size, _VOLUME_BYTES_PER_PIXEL)
     diagonal = float(np.linalg.norm((np.array(dims) - 1) * sp))
+    scale, image_sample_distance, early_termination = _quality.volume(quality, sample_distance,
+                                                                      image_sample_distance, early_termination)
     if sample_distance is None:
-        sample_distance = 0.5 * sp.min()
+        sample_distance = 0.5 * scale * sp.min()
     sample_distance = _checks.real(sample_distance, "sample_distance", 0.0, lo_open=True, meaning="world units")
     if diagonal / sample_distance > _checks.MAX_SAMPLES_PER_RAY:
         raise ValueError(f"sample_distance {sample_distance!r} asks for {diagonal / sample_distance:.3g} samples "
@@ -257,7 +259,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
                   double_precision: bool = False, shade: bool = False, threads: int = 0, backend: str = "cpu",
-                  device: str | None = None, return_stats: bool = False):
+                  device: str | None = None, return_stats: bool = False, quality: str | None = None):
     """Ray cast a scalar volume into an RGBA image on the block-sparse encoding.
 
     Parameters
@@ -301,6 +303,12 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         ``$MATRIXTREE_OPENCL_DEVICE``, else the first GPU, else the first device.
     return_stats : bool, default: False
         Also return a dict of timings, samples and block/byte counts.
+    quality : {"exact", "balanced", "fast"}, optional
+        One word for ``sample_distance``, ``image_sample_distance`` and ``early_termination``
+        (not to be combined with them): "exact" = a quarter of the default sample distance and no
+        early termination; "balanced" = the defaults; "fast" = twice the default sample distance,
+        image sample distance 2 and early termination 0.95. Each is a point on the speed/accuracy
+        fronts of docs/speed_accuracy.md.
 
     Returns
     -------
@@ -338,7 +346,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
     """
     check_backend(backend)
     v = _prepare_volume_render(volume, size, camera, color, opacity, spacing, origin, sample_distance,
-                               opacity_unit_distance, image_sample_distance, early_termination, threads)
+                               opacity_unit_distance, image_sample_distance, early_termination, threads, quality)
     image, w, h, color, opacity, cam = v.image, v.width, v.height, v.color, v.opacity, v.camera
     sample_distance, opacity_unit_distance = v.sample_distance, v.opacity_unit_distance
     image_sample_distance, early_termination, threads = v.image_sample_distance, v.early_termination, v.threads
