@@ -46,6 +46,7 @@ from _common import ROOT, machine, markdown, write_json
 
 import matrixtree  # noqa: E402  (path set by _common)
 import matrixtree_engine as engine  # noqa: E402
+from matrixtree import _quality  # noqa: E402
 import stability  # noqa: E402
 from matrixtree.volume import default_transfer_functions, frame_camera, read_volume  # noqa: E402
 from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
@@ -276,6 +277,17 @@ def bench_volume(args) -> dict:
                                error=10 ** (-p / 10), bytes=caster.c.GetAllocatedBytes()))  # error: the MSE
         pareto(points, "ms", "error")
         families.append(points)
+    # The quality= presets of render_volume (matrixtree._quality), measured like the knobs.
+    points = []
+    for q in _quality.QUALITIES:
+        scale, isd, et = _quality.volume(q, None, 1.0, 0.99)
+        ms, img = frame(casters["float32"], dict(defaults, SampleDistance=scale * half, ImageSampleDistance=isd,
+                                                 EarlyTerminationThreshold=et))
+        p = psnr(img, ref)
+        points.append(dict(knob="quality preset", value=q, default=q == "balanced", ms=ms, psnr=p, ssim=ssim(img, ref),
+                           error=10 ** (-p / 10), bytes=casters["float32"].c.GetAllocatedBytes()))
+    pareto(points, "ms", "error")
+    families.append(points)
     dims = image.GetDimensions()
     return dict(volume="headsq", dims=list(dims), size=list(size), knobs=families)
 
@@ -592,7 +604,9 @@ def write_markdown(path: str, res: dict, files: dict, cmd: str) -> None:
            "the smallest spacing, image sample distance 1, early termination 0.99, float compositing, float32",
            "bricks). Reference: 1/16 of the smallest spacing, double precision, no early termination.",
            "Bit depth: the scalars quantized to 8 or 16 bits over their range (transfer functions mapped",
-           "alike); the bricks are stored at the input's depth.", "",
+           "alike); the bricks are stored at the input's depth. The last table: render_volume's `quality=`",
+           "presets (matrixtree/_quality.py) measured the same way; render's presets are the triangle tests",
+           "of the rays table (exact = watertight, balanced = fast = Moller-Trumbore).", "",
            f"![volume]({folder}/{files['volume']})", ""]
     for points in v["knobs"]:
         out += [markdown(points, ["knob", "value", "default", "ms", "psnr", "ssim", "bytes", "front"]), ""]
