@@ -422,66 +422,66 @@ def _plot(ax, points, x, y, label, marker="o-"):
         ax.annotate(str(p["value"]), (p[x], p[y]), fontsize=7, xytext=(3, 3), textcoords="offset points")
 
 
-def charts(res: dict, folder: str) -> dict:
+def _figure(size, xlabel, ylabel, title, log=False):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    os.makedirs(folder, exist_ok=True)
-    files = {}
+    fig, ax = plt.subplots(figsize=size)
+    return fig, ax, lambda: _finish(plt, fig, ax, xlabel, ylabel, title, log)
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    pts = res["rays"]["points"]
-    _plot(ax, pts, "ns_per_ray", "errors_per_million", "triangle test", "o")
-    ax.set_xlabel("CPU ns per ray (1 thread)")
-    ax.set_ylabel("wrong answers per million rays")
-    ax.set_title(f"rays on {res['rays']['mesh']} ({res['rays']['triangles']} triangles); * = default")
-    files["rays"] = "tradeoffs_rays.png"
 
-    fig.tight_layout()
-    fig.savefig(os.path.join(folder, files["rays"]), dpi=110)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    _plot(ax, res["findcell"]["points"], "ns_per_point", "wrong_per_million", "FindCell tol2 (ns per point)")
-    _plot(ax, res["findcell"]["segments"], "ns_per_segment", "wrong_per_million", "IntersectWithLine tol (ns per segment)")
-    ax.set_xscale("log")
-    ax.set_xlabel("CPU ns per query (1 thread)")
-    ax.set_ylabel("wrong answers per million queries")
-    ax.set_title(f"cell queries on {res['findcell']['grid']}; * = default")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    files["findcell"] = "tradeoffs_findcell.png"
-    fig.savefig(os.path.join(folder, files["findcell"]), dpi=110)
-    plt.close(fig)
-
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for points in res["volume"]["knobs"]:
-        _plot(ax, points, "ms", "psnr", points[0]["knob"])
-    ax.set_xscale("log")
-    ax.set_xlabel("CPU ms per frame (1 thread)")
-    ax.set_ylabel("PSNR against the reference (dB, higher is better)")
-    ax.set_title(f"volume {res['volume']['volume']} at {res['volume']['size'][0]}^2; * = default")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    files["volume"] = "tradeoffs_volume.png"
-    fig.savefig(os.path.join(folder, files["volume"]), dpi=110)
-    plt.close(fig)
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
-    for ax, key, x, title in ((axes[0], "rays", "ns_per_ray", "rays (horse.ply)"),
-                              (axes[1], "findcell", "ns_per_point", "FindCell (pipe_flow_tets.vtu)")):
-        for points in res["shape"][key]:
-            _plot(ax, points, x, "mbytes", points[0]["knob"])
-        ax.set_xlabel(x.replace("_", " ") + " (CPU, 1 thread)")
-        ax.set_ylabel("MiB held")
-        ax.set_title(f"tree shape, {title}: work, not accuracy")
+def _finish(plt, fig, ax, xlabel, ylabel, title, log):
+    if log:
+        ax.set_xscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7)
     fig.tight_layout()
-    files["shape"] = "tradeoffs_shape.png"
-    fig.savefig(os.path.join(folder, files["shape"]), dpi=110)
+    return fig
+
+
+def _save(fig, folder, name) -> str:
+    import matplotlib.pyplot as plt
+
+    fig.savefig(os.path.join(folder, name), dpi=110)
     plt.close(fig)
+    return name
+
+
+def charts(res: dict, folder: str) -> dict:
+    os.makedirs(folder, exist_ok=True)
+    files = {}
+    r = res["rays"]
+    fig, ax, done = _figure((6, 4), "CPU ns per ray (1 thread)", "wrong answers per million rays",
+                            f"rays on {r['mesh']} ({r['triangles']} triangles); * = default")
+    _plot(ax, r["points"], "ns_per_ray", "errors_per_million", "triangle test", "o")
+    files["rays"] = _save(done(), folder, "tradeoffs_rays.png")
+
+    f = res["findcell"]
+    fig, ax, done = _figure((6, 4), "CPU ns per query (1 thread)", "wrong answers per million queries",
+                            f"cell queries on {f['grid']}; * = default", log=True)
+    _plot(ax, f["points"], "ns_per_point", "wrong_per_million", "FindCell tol2 (ns per point)")
+    _plot(ax, f["segments"], "ns_per_segment", "wrong_per_million", "IntersectWithLine tol (ns per segment)")
+    files["findcell"] = _save(done(), folder, "tradeoffs_findcell.png")
+
+    v = res["volume"]
+    fig, ax, done = _figure((7, 4.5), "CPU ms per frame (1 thread)", "PSNR against the reference (dB, higher is better)",
+                            f"volume {v['volume']} at {v['size'][0]}^2; * = default", log=True)
+    for points in v["knobs"]:
+        _plot(ax, points, "ms", "psnr", points[0]["knob"])
+    files["volume"] = _save(done(), folder, "tradeoffs_volume.png")
+
+    for key, x, title in (("rays", "ns_per_ray", "rays (horse.ply)"),
+                          ("findcell", "ns_per_point", "FindCell (pipe_flow_tets.vtu)")):
+        fig, ax, done = _figure((6, 4.5), x.replace("_", " ") + " (CPU, 1 thread)", "MiB held",
+                                f"tree shape, {title}: work, not accuracy")
+        for points in res["shape"][key]:
+            _plot(ax, points, x, "mbytes", points[0]["knob"])
+        files["shape_" + key] = _save(done(), folder, f"tradeoffs_shape_{key}.png")
     return files
 
 
@@ -615,7 +615,7 @@ def write_markdown(path: str, res: dict, files: dict, cmd: str) -> None:
             "Height, leaf scale, block size, tree kind and exact against bounding-box overlap change what a",
             "query costs and what the tree holds, never its answers (`same_answers`: bit for bit the",
             "default's t and cell ids, or cell ids). The fronts are time against memory.", "",
-            f"![shape]({folder}/{files['shape']})", ""]
+            f"![shape, rays]({folder}/{files['shape_rays']})", f"![shape, FindCell]({folder}/{files['shape_findcell']})", ""]
     for key, x in (("rays", "ns_per_ray"), ("findcell", "ns_per_point")):
         for points in s[key]:
             cols = ["knob", "value", "default", "build_ms", x, "mbytes"] + (["tests_per_ray"] if key == "rays" else [])
