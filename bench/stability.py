@@ -359,3 +359,35 @@ def volume_sampling(scale: float, offset: float, double_precision: bool = False)
     img = volume_render(scale, offset, double_precision)
     return {"pixels": ref.shape[0] * ref.shape[1], "max_drgba": float(np.abs(img - ref).max()),
             "coverage": float(ref[..., 3].mean())}
+
+
+def vtk_find_cell(locator, scale: float, offset: float, points: int = 120, seed: int = 4) -> dict:
+    """find_cell's experiment through a VTK cell locator (an instance of any vtkAbstractCellLocator
+    class: vtkMatrixTreeLocator, or VTK's own for comparison) on the same tetrahedra as a
+    vtkUnstructuredGrid. Needs VTK."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkGenericCell, vtkUnstructuredGrid
+
+    pts, tets, _ = _scaled_tets(scale, offset)
+    grid, p, cells = vtkUnstructuredGrid(), vtkPoints(), vtkCellArray()
+    p.SetData(numpy_to_vtk(np.ascontiguousarray(pts), deep=True))
+    cells.SetData(numpy_to_vtkIdTypeArray(np.arange(0, 4 * len(tets) + 1, 4, dtype=np.int64), deep=True),
+                  numpy_to_vtkIdTypeArray(np.ascontiguousarray(tets, np.int64).ravel(), deep=True))
+    grid.SetPoints(p)
+    grid.SetCells(VTK_TETRA, cells)
+    locator.SetDataSet(grid)
+    locator.BuildLocator()
+    rng = np.random.default_rng(seed)
+    chosen = rng.integers(0, len(tets), points)
+    x = np.einsum("mk,mkj->mj", rng.dirichlet(np.ones(4), points), pts[tets[chosen]])
+    cell, pc, w = vtkGenericCell(), [0.0] * 3, [0.0] * 4
+    wrong = missing = 0
+    for i in range(points):
+        found = locator.FindCell(list(x[i]), 0.0, cell, pc, w)
+        b = exact_barycentrics(x[i], pts[tets[found if found >= 0 else chosen[i]]])
+        if found < 0:
+            missing += int(min(b) >= 0)
+        else:
+            wrong += int(min(b) < Fraction(-1, 1000))
+    return {"points": points, "wrong": wrong, "missing": missing}

@@ -376,6 +376,14 @@ def bench_shape(args) -> dict:
 MAGNITUDES = (1e-12, 1e-6, 1.0, 1e6, 1e12)
 
 
+def locator_classes():
+    """vtkMatrixTreeLocator and, for comparison, VTK's vtkStaticCellLocator."""
+    from matrixtree_vtk import vtkMatrixTreeLocator
+    from vtkmodules.vtkCommonDataModel import vtkStaticCellLocator
+
+    return [("vtkMatrixTreeLocator", vtkMatrixTreeLocator), ("VTK's vtkStaticCellLocator", vtkStaticCellLocator)]
+
+
 def stability_rows() -> list:
     rows = []
     places = [(s, 0.0) for s in MAGNITUDES] + [(4e-3, 1e8), (4e-3, 1e10)]
@@ -386,8 +394,12 @@ def stability_rows() -> list:
             rows.append(dict(path=f"ray/triangle, {test}", case="closed sphere, rays at vertices and edges",
                              magnitude=where, error=f"rel dt {r['rel_dt']:.1e}", failures=f"{r['leaks']}/{r['rays']} leak"))
         r = stability.find_cell(scale, offset)
-        rows.append(dict(path="FindCell", case="jittered tetrahedra", magnitude=where,
+        rows.append(dict(path="FindCell (engine)", case="jittered tetrahedra", magnitude=where,
                          error=f"dpcoords {r['dpcoords']:.1e}", failures=f"{r['wrong'] + r['missing']}/{r['points']} wrong"))
+        for name, cls in locator_classes():
+            r = stability.vtk_find_cell(cls(), scale, offset)
+            rows.append(dict(path=f"FindCell, {name}", case="jittered tetrahedra", magnitude=where, error="-",
+                             failures=f"{r['wrong'] + r['missing']}/{r['points']} wrong or missing"))
         r = stability.segment_first_hit(scale, offset)
         rows.append(dict(path="segment/cell (IntersectWithLine)", case="segments into the tetrahedra", magnitude=where,
                          error=f"dx/h {r['dx_over_h']:.1e}", failures=f"{r['missed']}/{r['segments']} missed"))
@@ -543,9 +555,9 @@ for cells of 1e-3 at 1e8:
   Below the rounding unit of that distance the watertight test, which moves the vertices to the
   ray origin first (Woop et al. 2013), sees a degenerate triangle and misses it; Moller-Trumbore
   keeps the edge vectors and still hits. Documented bound, not a fallback.
-- FindCell: the right cell for every point, pcoords within 8 ulp of exact. VTK's
-  vtkStaticCellLocator on the same tetrahedra at scale 1e-12 finds no cell for most points (its
-  tolerances are absolute); vtkMatrixTreeLocator's are relative to the cells.
+- FindCell: the right cell for every point, pcoords within 8 ulp of exact, through the engine
+  and through vtkMatrixTreeLocator. VTK's vtkStaticCellLocator on the same tetrahedra at scale
+  1e-12 finds no cell for almost every point (the table's row; its tolerances are absolute).
 - segment/cell first hit and closest point: within 8 (4) rounding units of the largest
   coordinate: the error is the input's own quantization (dx/h grows as offset x 2^-52 / h: about
   1e-5 cells at an offset of 1e8 with cells of 1e-3, 1e-3 cells at 1e10), never a wrong or
