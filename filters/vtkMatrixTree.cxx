@@ -557,6 +557,13 @@ mtree::RenderResult vtkMatrixTree::Render(
     scene.extend(mtree::Vec3(&in.Mesh.points()[3 * i]));
   }
   vtkMatrixTreeOpenCL& cl = *this->OpenCL;
+  if (this->Backend == OPENCL && (cl.SplitTreeOnDevice || cl.TreeOnDevice) && watertight)
+  {
+    // The device kernels test triangles with Moller-Trumbore alone (opencl/query.cl): refused
+    // rather than traced with a test that lets rays through shared edges.
+    throw std::runtime_error("the OpenCL backend has only the Moller-Trumbore triangle test; "
+                             "use the CPU backend for the watertight test");
+  }
   if (this->Backend == OPENCL && cl.SplitTreeOnDevice)
   {
     return mtree::renderOpenCL(*cl.SplitTracer, in.Mesh, scene, camera, options);

@@ -290,8 +290,9 @@ public:
   /**
    * Renders the mesh of the last build through its tree (mtree/rays/render.h): on the CPU through
    * the tree's tracer (the Moller-Trumbore or the watertight triangle test), with the OPENCL
-   * backend on the device (renderOpenCL, Moller-Trumbore only; per-pixel counters 0). Builds if
-   * needed; throws std::runtime_error when the tree cannot be built, and the engine's errors.
+   * backend on the device (renderOpenCL, Moller-Trumbore only: watertight with it throws; per-pixel
+   * counters 0). Builds if needed; throws std::runtime_error when the tree cannot be built, and
+   * the engine's errors.
    */
   mtree::RenderResult Render(const mtree::Camera& camera, const mtree::RenderOptions& options, bool watertight);
   ///@{

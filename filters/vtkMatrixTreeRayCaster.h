@@ -147,8 +147,10 @@ public:
 
   ///@{
   /**
-   * Ray/triangle test: MOLLER_TRUMBORE (default, fastest) or WATERTIGHT (no ray slips between
-   * the triangles of a closed mesh; a few percent slower).
+   * Ray/triangle test: MOLLER_TRUMBORE (default) or WATERTIGHT (no ray slips between the
+   * triangles of a closed mesh; within a few percent of the same speed on the CPU:
+   * docs/speed_accuracy.md). The OpenCL backend has Moller-Trumbore only: WATERTIGHT with it
+   * makes RequestData fail with an error.
    */
   enum TriangleTests
   {

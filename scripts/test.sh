@@ -42,7 +42,8 @@ PIP_VENV=build/venv-pip
 # shared data folder is named explicitly.
 PIP_TESTS=(tests/python/test_engine.py tests/python/test_filters.py tests/python/test_mesh_changes.py
            tests/python/test_matrixtree.py tests/python/test_cli.py tests/python/test_bench_tools.py
-           tests/python/test_readme.py tests/python/test_reliability.py)
+           tests/python/test_readme.py tests/python/test_reliability.py tests/python/test_quality.py
+           tests/python/test_stability.py)
 echo "[test] pip environment ($PIP_VENV): newest vtk + pyvista, pip install ."
 T3=$SECONDS
 pip_stage() {

@@ -24,7 +24,7 @@ import time
 import numpy as np
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
-from matrixtree import _checks, _meshstate
+from matrixtree import _checks, _meshstate, _quality
 from matrixtree._cellarrays import cell_arrays, points_of, surface_arrays
 from matrixtree._backend import engine
 from matrixtree._util import RAY_TREES, bounds6, check_backend, points3, segments, tree_type
@@ -291,11 +291,12 @@ def auto_camera(points: np.ndarray, view_angle: float = 30.0):
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
            shadows: bool = True, threads: int = 0, caster: SurfaceCaster | None = None,
            backend: str = "cpu", traversal: str = "stack", triangle_test: str = "moller-trumbore",
-           leaf_scale: float | None = None, counters: bool = False) -> dict:
+           leaf_scale: float | None = None, counters: bool = False, quality: str | None = None) -> dict:
     """Ray cast a mesh: ``matrixtree.core.render`` on the engine (same arguments and results;
     ``caster`` is a :class:`SurfaceCaster`)."""
     from matrixtree.core import _as_polydata, _check_render_settings
 
+    triangle_test = _quality.triangle_test(quality, triangle_test)
     pd = _as_polydata(mesh)
     w, h, camera, height, threads, leaf_scale = _check_render_settings(size, traversal, triangle_test, camera, tree,
                                                                        backend, height, threads, leaf_scale)
@@ -421,10 +422,11 @@ class VolumeRenderer:
 
     def render(self, *, camera=None, size=(512, 512), sample_distance: float | None = None,
                image_sample_distance: float = 1.0, early_termination: float = 0.99, double_precision: bool = False,
-               shade: bool = False, return_stats: bool = False):
+               shade: bool = False, return_stats: bool = False, quality: str | None = None):
         from matrixtree.volume import _prepare_frame
 
-        f = _prepare_frame(self.image, size, camera, sample_distance, image_sample_distance, early_termination)
+        f = _prepare_frame(self.image, size, camera, sample_distance, image_sample_distance, early_termination,
+                           quality)
         rebuilt = self._volume()
         cam, image = f.camera, self.image
         # The first point's position: the origin moved by the extent's start (vtkImageData places
@@ -457,13 +459,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
                   double_precision: bool = False, shade: bool = False, threads: int = 0, backend: str = "cpu",
-                  device: str | None = None, return_stats: bool = False):
+                  device: str | None = None, return_stats: bool = False, quality: str | None = None):
     """Ray cast a scalar volume: ``matrixtree.volume.render_volume`` on the engine (same
     arguments and results)."""
-    return VolumeRenderer(volume, color=color, opacity=opacity, spacing=spacing, origin=origin,
-                          opacity_unit_distance=opacity_unit_distance, threads=threads, backend=backend,
-                          device=device).render(camera=camera, size=size, sample_distance=sample_distance,
-                                                image_sample_distance=image_sample_distance,
-                                                early_termination=early_termination,
-                                                double_precision=double_precision, shade=shade,
-                                                return_stats=return_stats)
+from matrixtree import _checks, _meshstate

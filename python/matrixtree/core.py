@@ -18,7 +18,7 @@ from matrixtree._backend import VTK_MODULE
 
 if VTK_MODULE:
     from matrixtree_vtk import vtkMatrixTree, vtkMatrixTreeRayCaster
-from matrixtree import _checks, _meshstate
+from matrixtree import _checks, _meshstate, _quality
 from matrixtree._readers import check_not_empty, read_obj, read_off, read_ply
 from matrixtree._util import (RAY_TREES, SPLIT_TREES, VtkErrors, check_backend, existing_file, points3, read_by_extension,
                               tree_type, vtk_points)
@@ -390,7 +390,7 @@ def _check_render_settings(size, traversal: str, triangle_test: str, camera, tre
 def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=None,
            shadows: bool = True, threads: int = 0, caster: vtkMatrixTreeRayCaster | None = None,
            backend: str = "cpu", traversal: str = "stack", triangle_test: str = "moller-trumbore",
-           leaf_scale: float | None = None, counters: bool = False) -> dict:
+           leaf_scale: float | None = None, counters: bool = False, quality: str | None = None) -> dict:
     """Ray cast a mesh through a matrix tree: primary rays, one shadow ray per hit, Lambert shading.
 
     Parameters
@@ -410,8 +410,12 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
         SAH kd-tree traversal: a full stack, a short stack of 3 entries, or KD-Restart. Ignored
         for the trees of :class:`MatrixTree` (each has its production walk).
     triangle_test : {"moller-trumbore", "watertight"}, default: "moller-trumbore"
-        Moller-Trumbore is the fastest; the watertight test (Woop, Benthin & Wald 2013) lets no ray
-        slip between the triangles of a closed mesh, at a few percent of speed.
+        The watertight test (Woop, Benthin & Wald 2013) lets no ray slip between the triangles of
+        a closed mesh, within a few percent of Moller-Trumbore's speed on the CPU; Moller-Trumbore,
+        the default, is the one test of both backends ("watertight" with "opencl" is an error).
+    quality : {"exact", "balanced", "fast"}, optional
+        One word for ``triangle_test`` (not to be combined with it): "exact" = "watertight",
+        "balanced" and "fast" = "moller-trumbore" (docs/speed_accuracy.md).
     leaf_scale : float, optional
         Automatic height: the leaf extent aimed at, as a multiple of the median triangle extent
         (engine default 2.0, fastest build; 1.0 renders faster on most meshes, see
@@ -448,6 +452,7 @@ def render(mesh, size=(800, 800), tree: str = "octree", height: int = 0, camera=
     >>> img["rgb"].shape
     (48, 64, 3)
     """
+    triangle_test = _quality.triangle_test(quality, triangle_test)
     pd = _as_polydata(mesh)
     w, h, camera, height, threads, leaf_scale = _check_render_settings(size, traversal, triangle_test, camera, tree,
                                                                        backend, height, threads, leaf_scale)

@@ -25,7 +25,7 @@ from matrixtree._backend import VTK_MODULE
 if VTK_MODULE:
     from matrixtree_vtk import vtkMatrixTreeVolumeRayCaster
 
-from matrixtree import _checks
+from matrixtree import _checks, _quality
 from matrixtree._readers import check_not_empty
 from matrixtree._util import VtkErrors, check_backend, existing_file, read_by_extension
 
@@ -237,15 +237,17 @@ def _prepare_volume(volume, color, opacity, spacing, origin, opacity_unit_distan
                            threads=threads)
 
 
-def _prepare_frame(image, size, camera, sample_distance, image_sample_distance, early_termination):
+def _prepare_frame(image, size, camera, sample_distance, image_sample_distance, early_termination, quality=None):
     """The per-frame inputs of :meth:`VolumeRenderer.render` checked and completed: a namespace
     with width, height, camera, sample_distance, image_sample_distance and early_termination."""
     dims = image.GetDimensions()
     sp = np.abs(np.array(image.GetSpacing(), dtype=float))
     w, h = _checks.image_size(size, _VOLUME_BYTES_PER_PIXEL)
     diagonal = float(np.linalg.norm((np.array(dims) - 1) * sp))
+    scale, image_sample_distance, early_termination = _quality.volume(quality, sample_distance,
+                                                                      image_sample_distance, early_termination)
     if sample_distance is None:
-        sample_distance = 0.5 * sp.min()
+        sample_distance = 0.5 * scale * sp.min()
     sample_distance = _checks.real(sample_distance, "sample_distance", 0.0, lo_open=True, meaning="world units")
     if diagonal / sample_distance > _checks.MAX_SAMPLES_PER_RAY:
         raise ValueError(f"sample_distance {sample_distance!r} asks for {diagonal / sample_distance:.3g} samples "
@@ -325,10 +327,11 @@ class VolumeRenderer:
 
     def render(self, *, camera=None, size=(512, 512), sample_distance: float | None = None,
                image_sample_distance: float = 1.0, early_termination: float = 0.99, double_precision: bool = False,
-               shade: bool = False, return_stats: bool = False):
+               shade: bool = False, return_stats: bool = False, quality: str | None = None):
         """One frame: the arguments and results of :func:`render_volume`; the stats also say
         whether this frame classified the volume (``rebuilt``)."""
-        f = _prepare_frame(self.image, size, camera, sample_distance, image_sample_distance, early_termination)
+        f = _prepare_frame(self.image, size, camera, sample_distance, image_sample_distance, early_termination,
+                           quality)
         c = self._caster
         c.SetImageSize(f.width, f.height)
         c.SetCamera(f.camera)
@@ -375,7 +378,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
                   sample_distance: float | None = None, image_sample_distance: float = 1.0,
                   opacity_unit_distance: float | None = None, early_termination: float = 0.99,
                   double_precision: bool = False, shade: bool = False, threads: int = 0, backend: str = "cpu",
-                  device: str | None = None, return_stats: bool = False):
+                  device: str | None = None, return_stats: bool = False, quality: str | None = None):
     """Ray cast a scalar volume into an RGBA image on the block-sparse encoding.
 
     Parameters
@@ -422,6 +425,12 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
         ``float32``, ``uint8`` or ``uint16``; floating-point scalars are quantised into 16-bit
         bricks, ``quantization_step`` their range / 65535, where the 4096-entry lookup table is
         16 times coarser than a step: a sample moves by at most 1/32 of a table entry).
+    quality : {"exact", "balanced", "fast"}, optional
+        One word for ``sample_distance``, ``image_sample_distance`` and ``early_termination``
+        (not to be combined with them): "exact" = a quarter of the default sample distance and no
+        early termination; "balanced" = the defaults; "fast" = twice the default sample distance,
+        image sample distance 2 and early termination 0.95. Each is a point on the speed/accuracy
+        fronts of docs/speed_accuracy.md.
 
     Returns
     -------
@@ -463,7 +472,7 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
                               device=device)
     return renderer.render(camera=camera, size=size, sample_distance=sample_distance,
                            image_sample_distance=image_sample_distance, early_termination=early_termination,
-                           double_precision=double_precision, shade=shade, return_stats=return_stats)
+                           double_precision=double_precision, shade=shade, return_stats=return_stats, quality=quality)
 
 
 if not VTK_MODULE:  # the engine extension answers (matrixtree._backend): one path per process

@@ -97,6 +97,16 @@ def test_opencl_render_matches_cpu_render(bunny):
 
 
 @needs_device
+@pytest.mark.parametrize("tree", ["octree", "implicit-kd"])
+def test_watertight_on_the_opencl_backend_is_refused(bunny, tree):
+    """The device kernels have the Moller-Trumbore test only: asking for watertight there is an
+    error, never a render that silently lets rays through shared edges."""
+    with pytest.raises(RuntimeError, match="only the Moller-Trumbore"):
+        matrixtree.render(bunny, size=(16, 16), tree=tree, backend="opencl", triangle_test="watertight")
+    assert matrixtree.render(bunny, size=(16, 16), tree=tree, backend="cpu", triangle_test="watertight")["rgb"].any()
+
+
+@needs_device
 @pytest.mark.parametrize("path, kind", [(BUNNY, "implicit-kd"), (HAND, "bsp")])
 def test_opencl_split_tree_rays_equal_the_cpu_walk(path, kind):
     # The split trees are built on the CPU; the device traces them with the stackless walk.
