@@ -153,3 +153,27 @@ def test_locator_agrees_with_vtk_cell_locator(grids, name):
             wrong += 1
     assert found > 300, name
     assert wrong == 0, name
+
+
+@pytest.mark.parametrize("name,want", [("hex20_curved", 4.0), ("bl_hex20wedge15_1e3", 4.0),
+                                       ("bl_hexwedge_1e4", 16.0)])
+def test_higher_order_grids_get_fewer_candidate_leaves(grids, name, want):
+    """MaxCandidates 0 (the default) is 4 where no cell has the engine's fast verdict (every
+    candidate costs VTK's Newton iteration; the leaf boxes keep their number), 16 with linear
+    cells; the shallower tree holds fewer references than the rule for linear cells."""
+    pytest.importorskip("matrixtree_vtk")
+    from matrixtree_vtk import vtkMatrixTreeLocator
+
+    def build(**kw):
+        loc = vtkMatrixTreeLocator()
+        loc.SetDataSet(grids[name])
+        for k, v in kw.items():
+            getattr(loc, "Set" + k)(v)
+        loc.BuildLocator()
+        return loc
+    auto = build()
+    assert auto.GetMaxCandidatesUsed() == want
+    if want == 4.0:
+        linear_rule = build(MaxCandidates=16.0)
+        assert auto.GetNumberOfReferences() < linear_rule.GetNumberOfReferences()
+        assert auto.GetMemorySize() < linear_rule.GetMemorySize()
