@@ -29,8 +29,9 @@ same loop timed by its thread's CPU time), findcell_paired_ratio_vs_static and
 rays_paired_ratio_vs_static with their quartiles _q1 and _q3 (the one-thread loops run
 interleaved, slice by slice, across the locators: the median of vtkStaticCellLocator's CPU time
 over this locator's on the same slice, back to back; see bench/cpp/locators_bench.cxx), disagreements
-(FindCell answers that differ from vtkCellLocator's and do not contain the point, or found/not
-found differs). Matrix-tree rows also carry batch_pts_per_s (the batched FindCells, ids only,
+(FindCell answers that do not contain the point, or -1 where vtkCellLocator found a cell),
+reference_misses (a containing cell where vtkCellLocator found none), ray_disagreements_vs_static
+(hit against miss, or first-hit t more than 1e-9 apart). Matrix-tree rows also carry batch_pts_per_s (the batched FindCells, ids only,
 all threads). --backend opencl|all adds the row matrix-octree-opencl (vtkMatrixTreeLocator with
 Backend OPENCL; "opencl" drops the CPU matrix rows): its findcell_pts_per_s_* are the batched
 FindCells with 1 and all host threads, with device, first_call_ms (upload and, with a cold
@@ -178,7 +179,7 @@ def main() -> int:
         r["bytes_ratio_vs_static"] = r["bytes"] / s["bytes"] if r["bytes"] > 0 and s["bytes"] > 0 else -1
         r["machine"] = machine()
     cols = ["grid", "cells", "locator", "backend", "device", "build_ms", "build_first_ms", "rebuild_ms", "bytes", "findcell_pts_per_s_1thread",
-            "findcell_pts_per_cpu_s_1thread", "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "rays_per_cpu_s", "disagreements", "reference_misses",
+            "findcell_pts_per_cpu_s_1thread", "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "rays_per_cpu_s", "disagreements", "reference_misses", "ray_disagreements_vs_static",
             "differs_from_cpu", "findcell_speedup_vs_static", "findcell_cpu_speedup_vs_static", "findcell_paired_speedup_vs_static",
             "rays_speedup_vs_static", "rays_cpu_speedup_vs_static", "rays_paired_speedup_vs_static",
             "build_ratio_vs_static", "build_first_ratio_vs_static", "build_shared_ratio_vs_static",

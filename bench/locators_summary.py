@@ -19,7 +19,8 @@ or build_ratio_vs_static where a run has no shared-process build).
 >= 5, build <= 1.5, memory <= 1), with the rates beside the ratios (FindCell and rays per CPU
 second, this locator | vtkStaticCellLocator, medians over the runs), the wrong answers
 (disagreements, the most over the runs) and the points where only vtkCellLocator found no cell
-(reference_misses).
+(reference_misses), the rays whose first hit differs from vtkStaticCellLocator's (hit against
+miss, or t by more than 1e-9; ray_disagreements_vs_static).
 """
 
 from __future__ import annotations
@@ -86,7 +87,7 @@ def main() -> int:
     rates = a.targets == "generated"
     head = ["grid", "cells", "height"] + [c[2] for c in cols_spec] + ["memory ×", "build × (shared process)"]
     if rates:
-        head += ["FindCell /s (ours \\| static)", "rays /s (ours \\| static)", "wrong", "VTK misses"]
+        head += ["FindCell /s (ours \\| static)", "rays /s (ours \\| static)", "wrong", "VTK misses", "rays ≠ static"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for grid, rs in rows.items():
@@ -108,6 +109,7 @@ def main() -> int:
                 cols.append(f"{ours_k:.3g} \\| {st_k:.3g}")
             cols.append(str(max(r.get("disagreements", -1) for r in rs)))
             cols.append(str(max(r.get("reference_misses", -1) for r in rs)))
+            cols.append(str(max(r.get("ray_disagreements_vs_static", -1) for r in rs)))
         print("| " + " | ".join(cols) + " |")
     return 0
 

@@ -141,6 +141,7 @@ int main(int argc, char* argv[])
     long long bytes;
     long long height = -1, refs = -1, leaves = -1; // matrix trees only
     std::vector<vtkIdType> found;
+    std::vector<double> rayT; // each segment's first-hit t, -1 on a miss
     double batchPps = -1, firstCallMs = -1;
     std::string device, phases, firstPhases;
     bool opencl = false, failed = false, matrix = false;
@@ -274,6 +275,7 @@ int main(int argc, char* argv[])
         idBytes * (static_cast<long long>(div[0]) * div[1] * div[2] + 1);
     }
     res.found.resize(static_cast<size_t>(nPts));
+    res.rayT.assign(static_cast<size_t>(nRays), -1.0);
     auto* mloc = vtkMatrixTreeLocator::SafeDownCast(loc);
     res.opencl = mloc && mloc->GetBackend() == vtkMatrixTreeLocator::OPENCL;
     res.matrix = mloc != nullptr;
@@ -371,16 +373,18 @@ int main(int argc, char* argv[])
     double t, x[3], pc[3], w[64];
     int sub;
     vtkIdType cid;
-    auto query = [&](vtkAbstractCellLocator* loc, int i, std::vector<vtkIdType>* found) {
+    auto query = [&](vtkAbstractCellLocator* loc, int i, Result* res) {
       if (rays)
       {
-        loc->IntersectWithLine(&seg[6 * i], &seg[6 * i + 3], 0.0, t, x, pc, sub, cid, gc);
+        const int hit = loc->IntersectWithLine(&seg[6 * i], &seg[6 * i + 3], 0.0, t, x, pc, sub, cid, gc);
+        if (res)
+          res->rayT[i] = hit ? t : -1.0;
       }
       else
       {
         const vtkIdType c = loc->FindCell(&pts[3 * i], 0.0, gc, pc, w);
-        if (found)
-          (*found)[i] = c;
+        if (res)
+          res->found[i] = c;
       }
     };
     for (int pass = 0; pass < kPasses; ++pass)
@@ -406,7 +410,7 @@ int main(int argc, char* argv[])
           vtkMatrixTreeLocatorQueryStatistics::Reset();
           const double c0 = ThreadCpuNow(), t0 = Now();
           for (int i = lo; i < hi; ++i)
-            query(loc, i, &res.found);
+            query(loc, i, &res);
           cpu[li][k] = ThreadCpuNow() - c0;
           wall[li][k] = Now() - t0;
           addStats(res);
@@ -499,6 +503,17 @@ int main(int argc, char* argv[])
           refMisses += ref[i] < 0;
       }
     }
+    // Rays against vtkStaticCellLocator's: a hit against a miss, or first hits whose t differ
+    // by more than 1e-9 (t runs over [0, 1] along the segment). A different cell at the same t
+    // is a tie (a shared face), not counted.
+    long long rayDis = -1;
+    if (staticIndex < locs.size() && !r.failed && nRays > 0)
+    {
+      rayDis = 0;
+      const std::vector<double>& st = results[staticIndex].rayT;
+      for (int i = 0; i < nRays; ++i)
+        rayDis += (r.rayT[i] < 0) != (st[i] < 0) || std::abs(r.rayT[i] - st[i]) > 1e-9;
+    }
     long long differs = -1;
     if (r.opencl && cpuIndex < locs.size())
     {
@@ -515,11 +530,12 @@ int main(int argc, char* argv[])
                 "\"rays_per_s\": %.1f, \"rays_per_cpu_s\": %.1f, "
                 "\"findcell_paired_ratio_vs_static\": %.4f, \"findcell_paired_ratio_q1\": %.4f, \"findcell_paired_ratio_q3\": %.4f, "
                 "\"rays_paired_ratio_vs_static\": %.4f, \"rays_paired_ratio_q1\": %.4f, \"rays_paired_ratio_q3\": %.4f, "
-                "\"points\": %d, \"found\": %lld, \"disagreements\": %lld, \"reference_misses\": %lld}\n",
+                "\"points\": %d, \"found\": %lld, \"disagreements\": %lld, \"reference_misses\": %lld, "
+                "\"ray_disagreements_vs_static\": %lld}\n",
       locs[li].name, r.opencl ? "opencl" : "cpu", r.device.c_str(), static_cast<long long>(ds->GetNumberOfCells()),
       r.buildMs, r.firstBuildMs, r.rebuildMs, r.bytes, r.height, r.refs, r.leaves, r.pps1, r.pps1Cpu, r.ppsAll, threads, r.batchPps, r.firstCallMs, r.firstPhases.c_str(), r.phases.c_str(), differs,
       r.failed ? "true" : "false", r.raysPerS, r.raysPerCpuS, r.findPaired[1], r.findPaired[0], r.findPaired[2],
-      r.raysPaired[1], r.raysPaired[0], r.raysPaired[2], nPts, found, dis, refMisses);
+      r.raysPaired[1], r.raysPaired[0], r.raysPaired[2], nPts, found, dis, refMisses, rayDis);
   }
   return 0;
 }
