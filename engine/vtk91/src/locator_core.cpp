@@ -38,8 +38,8 @@ void LocatorCore::build(const LocatorSettings& s) {
   // per triangle instead of 6-10; docs/bench_locators.md, "Surfaces"). Where no cell has
   // cell_eval.h's fast verdict (quadratic and higher-order cells: every candidate whose box
   // holds the point costs VTK's Newton iteration), at most 4 candidate leaves per cell: the
-  // quantized leaf boxes keep the Newton calls per point as they are, while a level fewer
-  // holds a third of the references (docs/bench_locators.md, "Generated grids").
+  // quantized leaf boxes keep the Newton calls per point as they are, while the shallower tree
+  // holds a fraction of the references (docs/bench_locators.md, "Generated grids").
   const bool surface = maxDim < 3;
   opt.leafScale = s.leafScale > 0 ? std::max(s.leafScale, 1e-3) : (surface ? 4.0 : 1.0);
   opt.maxCandidates = s.maxCandidates > 0 ? std::max(s.maxCandidates, 1.0)
