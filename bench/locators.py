@@ -6,9 +6,14 @@ point would measure Python, not the locators).
 
     .venv/bin/python bench/locators.py [--grid FILE] [--points N] [--rays N] [--json OUT] [--markdown MD]
                                        [--build-dir DIR] [--backend cpu|opencl|all]
+                                       [--generated small|bench [--big]] [--locators A,B,...]
 
 With no --grid it runs every CFD grid in ../shared/data/cfd and every mesh in
-../shared/data/meshes. JSON rows: grid, cells, locator, build_ms (median of 3, each after
+../shared/data/meshes. --generated SET runs bench/gridgen.py's grids of that set instead
+(every nonlinear VTK cell type, curved; graded boundary layers; written once to --grid-dir,
+default out/grids/SET), --big adds the 5M-cell boundary layer (out/grids/big). --locators limits
+the rows to those locators (vtkStaticCellLocator is always run: the ratios are to it; keep
+vtkCellLocator for the disagreements). JSON rows: grid, cells, locator, build_ms (median of 3, each after
 FreeSearchStructure), build_first_ms (the first of those 3), rebuild_ms (median of 3 BuildLocator
 calls after the points moved, without FreeSearchStructure: a deforming mesh's cost per frame),
 all three measured with each locator alone in a fresh process (--build-repeats such processes per
@@ -24,8 +29,9 @@ same loop timed by its thread's CPU time), findcell_paired_ratio_vs_static and
 rays_paired_ratio_vs_static with their quartiles _q1 and _q3 (the one-thread loops run
 interleaved, slice by slice, across the locators: the median of vtkStaticCellLocator's CPU time
 over this locator's on the same slice, back to back; see bench/cpp/locators_bench.cxx), disagreements
-(FindCell answers that differ from vtkCellLocator's and do not contain the point, or found/not
-found differs). Matrix-tree rows also carry batch_pts_per_s (the batched FindCells, ids only,
+(FindCell answers that do not contain the point, or -1 where vtkCellLocator found a cell),
+reference_misses (a containing cell where vtkCellLocator found none), ray_disagreements_vs_static
+(hit against miss, or first-hit t more than 1e-9 apart). Matrix-tree rows also carry batch_pts_per_s (the batched FindCells, ids only,
 all threads). --backend opencl|all adds the row matrix-octree-opencl (vtkMatrixTreeLocator with
 Backend OPENCL; "opencl" drops the CPU matrix rows): its findcell_pts_per_s_* are the batched
 FindCells with 1 and all host threads, with device, first_call_ms (upload and, with a cold
@@ -112,10 +118,25 @@ def main() -> int:
                    "$MATRIXTREE_BUILD_DIR or build/)")
     p.add_argument("--build-repeats", type=int, default=1,
                    help="fresh processes per locator and grid that time its builds alone (median; default 1)")
+    p.add_argument("--generated", choices=("small", "bench"), default=None,
+                   help="bench/gridgen.py's grids of this set instead of the shipped ones")
+    p.add_argument("--big", action="store_true", help="add bench/gridgen.py's 5M-cell grid")
+    p.add_argument("--grid-dir", default=os.path.join(ROOT, "out", "grids"),
+                   help="where generated grids are written and reused (default out/grids)")
+    p.add_argument("--locators", default="", help="comma-separated locator names (default: all)")
     a = p.parse_args()
     exe = require_driver(driver(a.build_dir))
-    d = scenes.data_dir()
-    paths = a.grid or sorted(glob.glob(os.path.join(d, "cfd", "*.*")) + glob.glob(os.path.join(d, "meshes", "*.*")))
+    only = a.locators
+    if only and "vtkStaticCellLocator" not in only.split(","):
+        only += ",vtkStaticCellLocator"
+    if a.generated or a.big:
+        import gridgen
+        paths = gridgen.generate(os.path.join(a.grid_dir, a.generated), a.generated) if a.generated else []
+        if a.big:
+            paths += gridgen.generate(os.path.join(a.grid_dir, "big"), "big")
+    else:
+        d = scenes.data_dir()
+        paths = a.grid or sorted(glob.glob(os.path.join(d, "cfd", "*.*")) + glob.glob(os.path.join(d, "meshes", "*.*")))
     paths = [x for x in paths if not x.endswith(".txt")]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -126,7 +147,7 @@ def main() -> int:
             it = paths
         for path in it:
             f = as_vtk_file(path, tmp)
-            out = subprocess.run([exe, f, str(a.points), str(a.rays), str(a.threads), "0", "", a.backend],
+            out = subprocess.run([exe, f, str(a.points), str(a.rays), str(a.threads), "0", only, a.backend],
                                  capture_output=True, text=True, check=True).stdout
             grid_rows = [json.loads(line) for line in out.splitlines()]
             for r in grid_rows:
@@ -158,7 +179,7 @@ def main() -> int:
         r["bytes_ratio_vs_static"] = r["bytes"] / s["bytes"] if r["bytes"] > 0 and s["bytes"] > 0 else -1
         r["machine"] = machine()
     cols = ["grid", "cells", "locator", "backend", "device", "build_ms", "build_first_ms", "rebuild_ms", "bytes", "findcell_pts_per_s_1thread",
-            "findcell_pts_per_cpu_s_1thread", "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "rays_per_cpu_s", "disagreements",
+            "findcell_pts_per_cpu_s_1thread", "findcell_pts_per_s_all", "batch_pts_per_s", "rays_per_s", "rays_per_cpu_s", "disagreements", "reference_misses", "ray_disagreements_vs_static",
             "differs_from_cpu", "findcell_speedup_vs_static", "findcell_cpu_speedup_vs_static", "findcell_paired_speedup_vs_static",
             "rays_speedup_vs_static", "rays_cpu_speedup_vs_static", "rays_paired_speedup_vs_static",
             "build_ratio_vs_static", "build_first_ratio_vs_static", "build_shared_ratio_vs_static",

@@ -141,6 +141,7 @@ int main(int argc, char* argv[])
     long long bytes;
     long long height = -1, refs = -1, leaves = -1; // matrix trees only
     std::vector<vtkIdType> found;
+    std::vector<double> rayT; // each segment's first-hit t, -1 on a miss
     double batchPps = -1, firstCallMs = -1;
     std::string device, phases, firstPhases;
     bool opencl = false, failed = false, matrix = false;
@@ -274,6 +275,7 @@ int main(int argc, char* argv[])
         idBytes * (static_cast<long long>(div[0]) * div[1] * div[2] + 1);
     }
     res.found.resize(static_cast<size_t>(nPts));
+    res.rayT.assign(static_cast<size_t>(nRays), -1.0);
     auto* mloc = vtkMatrixTreeLocator::SafeDownCast(loc);
     res.opencl = mloc && mloc->GetBackend() == vtkMatrixTreeLocator::OPENCL;
     res.matrix = mloc != nullptr;
@@ -371,16 +373,18 @@ int main(int argc, char* argv[])
     double t, x[3], pc[3], w[64];
     int sub;
     vtkIdType cid;
-    auto query = [&](vtkAbstractCellLocator* loc, int i, std::vector<vtkIdType>* found) {
+    auto query = [&](vtkAbstractCellLocator* loc, int i, Result* res) {
       if (rays)
       {
-        loc->IntersectWithLine(&seg[6 * i], &seg[6 * i + 3], 0.0, t, x, pc, sub, cid, gc);
+        const int hit = loc->IntersectWithLine(&seg[6 * i], &seg[6 * i + 3], 0.0, t, x, pc, sub, cid, gc);
+        if (res)
+          res->rayT[i] = hit ? t : -1.0;
       }
       else
       {
         const vtkIdType c = loc->FindCell(&pts[3 * i], 0.0, gc, pc, w);
-        if (found)
-          (*found)[i] = c;
+        if (res)
+          res->found[i] = c;
       }
     };
     for (int pass = 0; pass < kPasses; ++pass)
@@ -406,7 +410,7 @@ int main(int argc, char* argv[])
           vtkMatrixTreeLocatorQueryStatistics::Reset();
           const double c0 = ThreadCpuNow(), t0 = Now();
           for (int i = lo; i < hi; ++i)
-            query(loc, i, &res.found);
+            query(loc, i, &res);
           cpu[li][k] = ThreadCpuNow() - c0;
           wall[li][k] = Now() - t0;
           addStats(res);
@@ -468,8 +472,10 @@ int main(int argc, char* argv[])
         static_cast<unsigned long long>(res.stats[static_cast<size_t>(i)]));
     std::fprintf(stderr, "}\n");
   }
-  // Disagreements with vtkCellLocator: found/not found differs, or a different cell that does
-  // not contain the point.
+  // Disagreements with vtkCellLocator: a cell that does not contain the point, or none where
+  // vtkCellLocator found one. Where this locator finds a cell that contains the point and
+  // vtkCellLocator finds none (it drops points outside its buckets' bounds, and a curved
+  // quadratic cell can bulge past its nodes' bounds), the point counts as reference_misses.
   size_t refIndex = 0;
   while (refIndex < locs.size() && std::string(locs[refIndex].name) != "vtkCellLocator")
     ++refIndex;
@@ -480,16 +486,33 @@ int main(int argc, char* argv[])
   for (size_t li = 0; li < locs.size(); ++li)
   {
     const Result& r = results[li];
-    long long dis = haveRef ? 0 : -1, found = 0;
+    long long dis = haveRef ? 0 : -1, refMisses = haveRef ? 0 : -1, found = 0;
     for (int i = 0; i < nPts; ++i)
     {
       found += r.found[i] >= 0;
       if (!haveRef)
         continue;
       const std::vector<vtkIdType>& ref = results[refIndex].found;
-      if ((r.found[i] < 0) != (ref[i] < 0) ||
-        (r.found[i] >= 0 && r.found[i] != ref[i] && !Contains(ds, r.found[i], &pts[3 * i])))
-        ++dis;
+      if (r.found[i] < 0)
+        dis += ref[i] >= 0;
+      else if (r.found[i] != ref[i])
+      {
+        if (!Contains(ds, r.found[i], &pts[3 * i]))
+          ++dis;
+        else
+          refMisses += ref[i] < 0;
+      }
+    }
+    // Rays against vtkStaticCellLocator's: a hit against a miss, or first hits whose t differ
+    // by more than 1e-9 (t runs over [0, 1] along the segment). A different cell at the same t
+    // is a tie (a shared face), not counted.
+    long long rayDis = -1;
+    if (staticIndex < locs.size() && !r.failed && nRays > 0)
+    {
+      rayDis = 0;
+      const std::vector<double>& st = results[staticIndex].rayT;
+      for (int i = 0; i < nRays; ++i)
+        rayDis += (r.rayT[i] < 0) != (st[i] < 0) || std::abs(r.rayT[i] - st[i]) > 1e-9;
     }
     long long differs = -1;
     if (r.opencl && cpuIndex < locs.size())
@@ -507,11 +530,12 @@ int main(int argc, char* argv[])
                 "\"rays_per_s\": %.1f, \"rays_per_cpu_s\": %.1f, "
                 "\"findcell_paired_ratio_vs_static\": %.4f, \"findcell_paired_ratio_q1\": %.4f, \"findcell_paired_ratio_q3\": %.4f, "
                 "\"rays_paired_ratio_vs_static\": %.4f, \"rays_paired_ratio_q1\": %.4f, \"rays_paired_ratio_q3\": %.4f, "
-                "\"points\": %d, \"found\": %lld, \"disagreements\": %lld}\n",
+                "\"points\": %d, \"found\": %lld, \"disagreements\": %lld, \"reference_misses\": %lld, "
+                "\"ray_disagreements_vs_static\": %lld}\n",
       locs[li].name, r.opencl ? "opencl" : "cpu", r.device.c_str(), static_cast<long long>(ds->GetNumberOfCells()),
       r.buildMs, r.firstBuildMs, r.rebuildMs, r.bytes, r.height, r.refs, r.leaves, r.pps1, r.pps1Cpu, r.ppsAll, threads, r.batchPps, r.firstCallMs, r.firstPhases.c_str(), r.phases.c_str(), differs,
       r.failed ? "true" : "false", r.raysPerS, r.raysPerCpuS, r.findPaired[1], r.findPaired[0], r.findPaired[2],
-      r.raysPaired[1], r.raysPaired[0], r.raysPaired[2], nPts, found, dis);
+      r.raysPaired[1], r.raysPaired[0], r.raysPaired[2], nPts, found, dis, refMisses, rayDis);
   }
   return 0;
 }

@@ -12,13 +12,14 @@ void LocatorCore::build(const LocatorSettings& s) {
   // One pass over the types (one when all cells share it): the largest dimension, and whether
   // the rays' shape memo serves any cell.
   int maxDim = -1;
-  bool convex = false;
+  bool convex = false, anyEvaluable = false;
   int maxPts = 0;
   const size_t scan = cells.uniformType() ? std::min<size_t>(nc, 1) : nc;
   for (size_t c = 0; c < scan; ++c) {
     const uint8_t t = cells.type(c);
     maxDim = std::max(maxDim, cellTypeDimension(t));
     convex = convex || t == kHexahedron || t == kWedge || t == kPyramid;
+    anyEvaluable = anyEvaluable || cellEvaluable(t, cells.numCellPoints(c));
   }
   if (cells.uniformCellSize()) {
     maxPts = nc > 0 ? static_cast<int>(cells.numCellPoints(0)) : 0;
@@ -34,10 +35,15 @@ void LocatorCore::build(const LocatorSettings& s) {
   opt.threads = s.threads;
   // The automatic height: leaves about one median cell wide where any cell is 3-D (point
   // location tests every candidate of one leaf), about four on a surface (1.8-2.3 references
-  // per triangle instead of 6-10; docs/bench_locators.md, "Surfaces").
+  // per triangle instead of 6-10; docs/bench_locators.md, "Surfaces"). Where no cell has
+  // cell_eval.h's fast verdict (quadratic and higher-order cells: every candidate whose box
+  // holds the point costs VTK's Newton iteration), at most 4 candidate leaves per cell: the
+  // quantized leaf boxes keep the Newton calls per point as they are, while the shallower tree
+  // holds a fraction of the references (docs/bench_locators.md, "Generated grids").
   const bool surface = maxDim < 3;
   opt.leafScale = s.leafScale > 0 ? std::max(s.leafScale, 1e-3) : (surface ? 4.0 : 1.0);
-  opt.maxCandidates = s.maxCandidates > 0 ? std::max(s.maxCandidates, 1.0) : (surface ? 3.0 : 16.0);
+  opt.maxCandidates = s.maxCandidates > 0 ? std::max(s.maxCandidates, 1.0)
+                                          : (surface ? 3.0 : anyEvaluable ? 16.0 : 4.0);
   leafScaleUsed = opt.leafScale;
   maxCandidatesUsed = opt.maxCandidates;
   // The quantized leaf boxes are the builder's per-reference data: written at the scatter
