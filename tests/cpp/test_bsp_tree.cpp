@@ -21,6 +21,7 @@
 
 namespace {
 
+using mtest::kTraversals;
 using mtest::Ray;
 using mtree::BspBuildOptions;
 using mtree::BspBuildStats;
@@ -32,8 +33,6 @@ using mtree::TraversalStats;
 using mtree::TriangleMesh;
 using mtree::TriangleTest;
 using mtree::Vec3;
-
-const SplitTraversal kTraversals[3] = {SplitTraversal::Stack, SplitTraversal::Restart, SplitTraversal::Backtrack};
 
 struct Agreement {
   uint64_t mismatches = 0, anyWrong = 0, notBitEqual = 0, leavesDiffer = 0, hits = 0;

@@ -29,6 +29,7 @@ namespace {
 using mtest::aimedRays;
 using mtest::pointOn;
 using mtest::Ray;
+using mtest::transformed;
 using mtree::Box;
 using mtree::MatrixTree;
 using mtree::NodeRef;
@@ -40,13 +41,6 @@ using mtree::Vec3;
 const double kInf = std::numeric_limits<double>::infinity();
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 const TreeKind kKinds[2] = {TreeKind::Octree, TreeKind::RegularKd};
-
-TriangleMesh transformed(const TriangleMesh& m, double scale, Vec3 offset) {
-  std::vector<double> p = m.points();
-  for (size_t i = 0; i < p.size(); i += 3)
-    for (int a = 0; a < 3; ++a) p[i + a] = p[i + a] * scale + offset[a];
-  return TriangleMesh(std::move(p), m.triangles());
-}
 
 TriangleMesh merged(const TriangleMesh& a, const TriangleMesh& b) {
   std::vector<double> p = a.points();
@@ -158,24 +152,10 @@ TEST(EdgeCases, AllDegenerateTriangles) {
   // exactly collinear where the coordinates allow it: a, a + v, a + 2v).
   std::vector<double> p1, p2;
   std::vector<uint32_t> t1, t2;
-  for (uint32_t i = 0; i < 400; ++i) {
-    const Vec3 a = rng.inBox(Box{Vec3(0, 0, 0), Vec3(1, 2, 3)});
-    for (int k = 0; k < 3; ++k) p1.insert(p1.end(), {a.x, a.y, a.z});
-    t1.insert(t1.end(), {3 * i, 3 * i + 1, 3 * i + 2});
-    const Vec3 v = rng.direction() * 0.05;
-    for (int k = 0; k < 3; ++k) p2.insert(p2.end(), {a.x + k * v.x, a.y + k * v.y, a.z + k * v.z});
-    t2.insert(t2.end(), {3 * i, 3 * i + 2, 3 * i + 1});
-  }
+  mtest::degenerateTriangles(rng, p1, t1, p2, t2);
   for (const TriangleMesh& mesh : {TriangleMesh(p1, t1), TriangleMesh(p2, t2)}) {
     std::vector<Ray> rays = aimedRays(mesh, 2000, 4);
-    // Plus rays aimed exactly at the vertices.
-    for (size_t i = 0; i < 500; ++i) {
-      Ray r;
-      const Vec3 target = mesh.vertex(i % mesh.size(), static_cast<int>(i % 3));
-      r.o = target + rng.direction() * 2.0;
-      r.d = target - r.o;
-      rays.push_back(r);
-    }
+    mtest::addVertexRays(rays, mesh, 500, rng);  // plus rays aimed exactly at the vertices
     for (TreeKind kind : kKinds) {
       SCOPED_TRACE(mtree::treeKindName(kind));
       const MatrixTree t = mtest::buildTree(mesh, mtest::options(kind));
@@ -200,17 +180,7 @@ TEST(EdgeCases, AllDegenerateTriangles) {
 
 TEST(EdgeCases, FlatScene) {
   // A 30 x 30 grid of quads in the plane z = 0.25: the root box has no z extent of its own.
-  std::vector<double> p;
-  std::vector<uint32_t> t;
-  const int n = 30;
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) p.insert(p.end(), {i / double(n), j * 0.7 / n, 0.25});
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
-      t.insert(t.end(), {a, b, d, a, d, c});
-    }
-  const TriangleMesh mesh(p, t);
+  const TriangleMesh mesh = mtest::flatGrid(30);
   std::vector<Ray> rays = aimedRays(mesh, 3000, 5);
   mtest::Rng rng(6);
   for (int i = 0; i < 1000; ++i) {

@@ -28,6 +28,7 @@
 
 namespace {
 
+using mtest::kTraversals;
 using mtest::Ray;
 using mtree::Box;
 using mtree::ImplicitSplitTree;
@@ -40,8 +41,6 @@ using mtree::TraversalStats;
 using mtree::TriangleMesh;
 using mtree::TriangleTest;
 using mtree::Vec3;
-
-const SplitTraversal kTraversals[3] = {SplitTraversal::Stack, SplitTraversal::Restart, SplitTraversal::Backtrack};
 
 // Walks the pointer tree and the implicit one together: the node the implicit tree derives for
 // each child must hold what the pointer tree's child holds.

@@ -35,42 +35,26 @@ using mtree::Vec3;
 
 constexpr int kRaysPerMesh = 100000;
 
-double seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
+using mtest::seconds;
 
 std::vector<Ray> makeRays(const mtree::TriangleMesh& mesh, const MatrixTree* trees[2], int n, uint64_t seed) {
   mtest::Rng rng(seed);
   const Box mb = mtest::meshBounds(mesh);
   const Box wide = mtest::enlarged(mb, 0.05);
-  const Vec3 c = mb.center();
   const double diag = mtree::norm(mb.extent());
   std::vector<Ray> rays(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
     Ray& r = rays[i];
     const int kind = i % 20;
     if (kind < 8) {  // outside, aimed inside
-      r.o = c + rng.direction() * (diag * rng.uniform(0.55, 1.5));
-      r.d = rng.inBox(mb) - r.o;
-      if (rng.below(2)) r.d = mtree::normalized(r.d);
+      mtest::aimFromOutside(r, mb, diag, rng);
     } else if (kind < 14) {  // inside, random direction
       r.o = rng.inBox(mb);
       r.d = rng.direction();
     } else if (kind < 17) {  // axis-parallel
-      r.o = rng.inBox(wide);
-      r.d = rng.direction();
-      const int a = static_cast<int>(rng.below(3));
-      r.d[a] = 0;
-      if (rng.below(2)) r.d[(a + 1 + rng.below(2)) % 3] = 0;  // two zero components
+      mtest::axisParallel(r, wide, rng);
       // A third start outside the box along a moving axis, heading in.
-      if (rng.below(3) == 0) {
-        for (int b = 0; b < 3; ++b)
-          if (r.d[b] != 0) {
-            r.o[b] =
-                r.d[b] > 0 ? mb.lo[b] - 0.3 * (mb.hi[b] - mb.lo[b]) : mb.hi[b] + 0.3 * (mb.hi[b] - mb.lo[b]);
-            break;
-          }
-      }
+      if (rng.below(3) == 0) mtest::startOutside(r, mb, mb.extent() * 0.3);
     } else {  // on a bottom-level node plane, parallel to it
       const MatrixTree& t = *trees[i % 2];
       const int H = t.height();
@@ -88,19 +72,9 @@ std::vector<Ray> makeRays(const mtree::TriangleMesh& mesh, const MatrixTree* tre
         r.o[b] = root.lo[b] + kb * cs[b];
         r.d[b] = 0;
       }
-      if (rng.below(4) == 0) {  // start outside along a moving axis
-        for (int b = 0; b < 3; ++b)
-          if (r.d[b] != 0) {
-            r.o[b] = r.d[b] > 0 ? root.lo[b] - 0.2 * diag : root.hi[b] + 0.2 * diag;
-            break;
-          }
-      }
+      if (rng.below(4) == 0) mtest::startOutside(r, root, Vec3(0.2 * diag, 0.2 * diag, 0.2 * diag));
     }
-    if (i % 10 == 9) {  // a clipped interval
-      const double scale = diag / mtree::norm(r.d);
-      r.tmin = rng.uniform(0, 0.5) * scale;
-      r.tmax = r.tmin + rng.uniform(0, 1.5) * scale;
-    }
+    if (i % 10 == 9) mtest::clipInterval(r, diag, rng);
   }
   return rays;
 }
@@ -115,10 +89,10 @@ TEST_P(RealMeshRays, FirstHitEqualsBruteForce) {
   const MatrixTree* trees[2] = {&oct, &kd};
   const std::vector<Ray> rays = makeRays(mesh, trees, kRaysPerMesh, mtest::seedFor(rel, 7));
 
-  double t0 = seconds();
-  const mtest::BruteForce bf(mesh);
-  const std::vector<RayHit> ref = bf.firstAll(rays);
-  const double bfSeconds = seconds() - t0;
+  const mtest::TimedFirstHits reference(mesh, rays);
+  const std::vector<RayHit>& ref = reference.hits;
+  const double bfSeconds = reference.elapsed;
+  double t0;
 
   // The fast reference is the engine's reference, bit for bit (checked on a sample).
   int refDiffers = 0;

@@ -39,8 +39,8 @@
 namespace {
 
 using mtest::aimedRays;
-using mtest::pointOn;
 using mtest::Ray;
+using mtest::transformed;
 using mtree::Box;
 using mtree::RayHit;
 using mtree::SahKdTree;
@@ -64,9 +64,7 @@ const Config kConfigs[4] = {{SahTraversal::Stack, 3, "stack"},
                             {SahTraversal::ShortStack, 3, "shortstack3"},
                             {SahTraversal::ShortStack, 1, "shortstack1"}};
 
-double seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
+using mtest::seconds;
 
 int raysFor(size_t triangles) {
   const double n = 1.5e9 / std::max<size_t>(triangles, 1);
@@ -78,7 +76,6 @@ std::vector<Ray> makeRays(const TriangleMesh& mesh, const SahKdTree& tree, int n
   mtest::Rng rng(seed);
   const Box mb = mtest::meshBounds(mesh);
   const Box wide = mtest::enlarged(mb, 0.05);
-  const Vec3 c = mb.center();
   const double diag = std::max(mtree::norm(mb.extent()), 1e-300);
   std::vector<uint32_t> inner;
   for (uint32_t i = 0; i < tree.nodes().size(); ++i)
@@ -88,25 +85,13 @@ std::vector<Ray> makeRays(const TriangleMesh& mesh, const SahKdTree& tree, int n
     Ray& r = rays[i];
     const int kind = i % 20;
     if (kind < 8 || (kind >= 16 && kind < 18 && inner.empty())) {  // outside, aimed inside
-      r.o = c + rng.direction() * (diag * rng.uniform(0.55, 1.5));
-      r.d = rng.inBox(mb) - r.o;
-      if (rng.below(2)) r.d = mtree::normalized(r.d);
+      mtest::aimFromOutside(r, mb, diag, rng);
     } else if (kind < 13) {  // inside, random direction
       r.o = rng.inBox(mb);
       r.d = rng.direction();
     } else if (kind < 16) {  // axis-parallel
-      r.o = rng.inBox(wide);
-      r.d = rng.direction();
-      const int a = static_cast<int>(rng.below(3));
-      r.d[a] = 0;
-      if (rng.below(2)) r.d[(a + 1 + rng.below(2)) % 3] = 0;
-      if (rng.below(3) == 0) {  // start outside along a moving axis, heading in
-        for (int b = 0; b < 3; ++b)
-          if (r.d[b] != 0) {
-            r.o[b] = r.d[b] > 0 ? mb.lo[b] - 0.3 * (mb.hi[b] - mb.lo[b]) : mb.hi[b] + 0.3 * (mb.hi[b] - mb.lo[b]);
-            break;
-          }
-      }
+      mtest::axisParallel(r, wide, rng);
+      if (rng.below(3) == 0) mtest::startOutside(r, mb, mb.extent() * 0.3);  // heading in
     } else if (kind < 18) {  // on a split plane, parallel to it
       const mtree::SahKdNode& nd = tree.nodes()[inner[rng.below(static_cast<uint32_t>(inner.size()))]];
       const int a = nd.axis();
@@ -123,38 +108,16 @@ std::vector<Ray> makeRays(const TriangleMesh& mesh, const SahKdTree& tree, int n
           break;
         }
       }
-      if (rng.below(4) == 0) {  // start outside along a moving axis
-        for (int b = 0; b < 3; ++b)
-          if (r.d[b] != 0) {
-            r.o[b] = r.d[b] > 0 ? mb.lo[b] - 0.2 * diag : mb.hi[b] + 0.2 * diag;
-            break;
-          }
-      }
+      if (rng.below(4) == 0) mtest::startOutside(r, mb, Vec3(0.2 * diag, 0.2 * diag, 0.2 * diag));
     } else {  // from or at a vertex or an edge
       const size_t tri = rng.below(static_cast<uint32_t>(mesh.size()));
       const int k = static_cast<int>(rng.below(3));
       const Vec3 a = mesh.vertex(tri, k), b = mesh.vertex(tri, (k + 1) % 3);
       r.d = rng.direction();
-      switch (rng.below(4)) {
-        case 0:
-          r.o = a;
-          break;
-        case 1:
-          r.o = a + (b - a) * rng.uniform();
-          break;
-        case 2:
-          r.o = a - r.d * (diag * rng.uniform(0.01, 1.0));
-          break;
-        default:
-          r.o = a + (b - a) * 0.5 - r.d * (diag * rng.uniform(0.01, 1.0));
-          break;
-      }
+      const int which = static_cast<int>(rng.below(4));
+      r.o = mtest::atVertexOrEdge(which, a, b, r.d, diag, rng);
     }
-    if (i % 10 == 9) {  // a clipped interval
-      const double scale = diag / mtree::norm(r.d);
-      r.tmin = rng.uniform(0, 0.5) * scale;
-      r.tmax = r.tmin + rng.uniform(0, 1.5) * scale;
-    }
+    if (i % 10 == 9) mtest::clipInterval(r, diag, rng);
   }
   return rays;
 }
@@ -251,10 +214,10 @@ TEST_P(RealMeshSah, AllTraversalsEqualBruteForce) {
 
   const int nRays = raysFor(mesh.size());
   const std::vector<Ray> rays = makeRays(mesh, tree, nRays, mtest::seedFor(rel, 31));
-  double t0 = seconds();
-  const mtest::BruteForce bf(mesh);
-  const std::vector<RayHit> ref = bf.firstAll(rays);
-  const double bfSeconds = seconds() - t0;
+  const mtest::TimedFirstHits reference(mesh, rays);
+  const std::vector<RayHit>& ref = reference.hits;
+  const double bfSeconds = reference.elapsed;
+  double t0;
   uint64_t refHits = 0;
   for (const RayHit& h : ref) refHits += h.hit();
   EXPECT_GT(refHits, static_cast<uint64_t>(nRays / 10)) << "too few rays hit: the test would be weak";
@@ -417,13 +380,6 @@ Agreement agree(const SahKdTree& tree, const TriangleMesh& mesh, const std::vect
     EXPECT_EQ(ag_.anyWrong, 0u) << "intersectAny disagrees with the brute force";            \
     EXPECT_EQ(ag_.differsFromStack, 0u) << "a traversal's first hit differs from the stack's"; \
   } while (0)
-
-TriangleMesh transformed(const TriangleMesh& m, double scale, Vec3 offset) {
-  std::vector<double> p = m.points();
-  for (size_t i = 0; i < p.size(); i += 3)
-    for (int a = 0; a < 3; ++a) p[i + a] = p[i + a] * scale + offset[a];
-  return TriangleMesh(std::move(p), m.triangles());
-}
 
 // ---------------------------------------------------------------------------------------------
 // Watertightness
@@ -735,17 +691,8 @@ TEST(SahEdgeCases, SingleTriangle) {
 TEST(SahEdgeCases, FlatScene) {
   // A 30 x 30 grid of quads in the plane z = 0.25 (the root box has no z extent), rays aimed at it,
   // rays in its plane and rays leaving it from a point on it.
-  std::vector<double> p;
-  std::vector<uint32_t> t;
   const int n = 30;
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i) p.insert(p.end(), {i / double(n), j * 0.7 / n, 0.25});
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
-      t.insert(t.end(), {a, b, d, a, d, c});
-    }
-  const TriangleMesh mesh(p, t);
+  const TriangleMesh mesh = mtest::flatGrid(n);
   const SahKdTree tree(mesh);
   EXPECT_GT(tree.stats().nodes, 1u);
   std::vector<Ray> rays = aimedRays(mesh, 3000, 5);
@@ -771,14 +718,7 @@ TEST(SahEdgeCases, DegenerateTriangles) {
   // (1) every triangle a point; (2) every triangle a segment; (3) a sphere with both mixed in.
   std::vector<double> p1, p2;
   std::vector<uint32_t> t1, t2;
-  for (uint32_t i = 0; i < 400; ++i) {
-    const Vec3 a = rng.inBox(Box{Vec3(0, 0, 0), Vec3(1, 2, 3)});
-    for (int k = 0; k < 3; ++k) p1.insert(p1.end(), {a.x, a.y, a.z});
-    t1.insert(t1.end(), {3 * i, 3 * i + 1, 3 * i + 2});
-    const Vec3 v = rng.direction() * 0.05;
-    for (int k = 0; k < 3; ++k) p2.insert(p2.end(), {a.x + k * v.x, a.y + k * v.y, a.z + k * v.z});
-    t2.insert(t2.end(), {3 * i, 3 * i + 2, 3 * i + 1});
-  }
+  mtest::degenerateTriangles(rng, p1, t1, p2, t2);
   const TriangleMesh sphere = mtest::makeIcosphere(3, 1.0, Vec3(0.5, 1, 1.5));
   std::vector<double> p3 = sphere.points();
   std::vector<uint32_t> t3 = sphere.triangles();
@@ -789,13 +729,7 @@ TEST(SahEdgeCases, DegenerateTriangles) {
   for (const TriangleMesh& mesh : {TriangleMesh(p1, t1), TriangleMesh(p2, t2), TriangleMesh(p3, t3)}) {
     const SahKdTree tree(mesh);
     std::vector<Ray> rays = aimedRays(mesh, 2000, 4);
-    for (size_t i = 0; i < 500; ++i) {  // plus rays aimed exactly at vertices
-      Ray r;
-      const Vec3 target = mesh.vertex(i % mesh.size(), static_cast<int>(i % 3));
-      r.o = target + rng.direction() * 2.0;
-      r.d = target - r.o;
-      rays.push_back(r);
-    }
+    mtest::addVertexRays(rays, mesh, 500, rng);  // plus rays aimed exactly at vertices
     EXPECT_SAH_AGREES(agree(tree, mesh, rays));
   }
 }
@@ -970,20 +904,7 @@ TEST(SahEdgeCases, RaysFromVerticesAndEdges) {
       const Vec3 a = mesh->vertex(tri, k), b = mesh->vertex(tri, (k + 1) % 3);
       Ray r;
       r.d = rng.direction();
-      switch (i % 4) {
-        case 0:
-          r.o = a;
-          break;
-        case 1:
-          r.o = a + (b - a) * rng.uniform();
-          break;
-        case 2:
-          r.o = a - r.d * rng.uniform(0.01, 1.0);
-          break;
-        default:
-          r.o = a + (b - a) * 0.5 - r.d * rng.uniform(0.01, 1.0);
-          break;
-      }
+      r.o = mtest::atVertexOrEdge(i % 4, a, b, r.d, 1.0, rng);
       rays.push_back(r);
     }
     for (TriangleTest test : {TriangleTest::MollerTrumbore, TriangleTest::Watertight}) {

@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -398,6 +399,84 @@ inline std::vector<Ray> aimedRays(const mtree::TriangleMesh& m, int n, uint64_t 
   return rays;
 }
 
+// Pieces of the mixed ray sets of the traversal tests. Each draws from rng in a fixed order, so
+// a seed names one ray set.
+
+/// From outside box b (diagonal diag) at 0.55..1.5 diagonals from its centre, aimed at a random
+/// point inside; the direction normalized on every other draw.
+inline void aimFromOutside(Ray& r, const Box& b, double diag, Rng& rng) {
+  r.o = b.center() + rng.direction() * (diag * rng.uniform(0.55, 1.5));
+  r.d = rng.inBox(b) - r.o;
+  if (rng.below(2)) r.d = mtree::normalized(r.d);
+}
+
+/// From a random point of `from` with one zero direction component, two on every other draw.
+inline void axisParallel(Ray& r, const Box& from, Rng& rng) {
+  r.o = rng.inBox(from);
+  r.d = rng.direction();
+  const int a = static_cast<int>(rng.below(3));
+  r.d[a] = 0;
+  if (rng.below(2)) r.d[(a + 1 + rng.below(2)) % 3] = 0;
+}
+
+/// Moves r.o along the first axis r.d moves on to margin[axis] outside box b, heading in.
+inline void startOutside(Ray& r, const Box& b, const Vec3& margin) {
+  for (int k = 0; k < 3; ++k)
+    if (r.d[k] != 0) {
+      r.o[k] = r.d[k] > 0 ? b.lo[k] - margin[k] : b.hi[k] + margin[k];
+      return;
+    }
+}
+
+/// Clips [tmin, tmax] to a random stretch of at most 0.5 + 1.5 lengths diag along the ray.
+inline void clipInterval(Ray& r, double diag, Rng& rng) {
+  const double scale = diag / mtree::norm(r.d);
+  r.tmin = rng.uniform(0, 0.5) * scale;
+  r.tmax = r.tmin + rng.uniform(0, 1.5) * scale;
+}
+
+/// An origin at or near the edge a-b for direction d: 0 the vertex a, 1 a random point of the
+/// edge, 2 behind a, 3 behind the edge's midpoint (behind: up to `reach` along -d).
+inline Vec3 atVertexOrEdge(int which, Vec3 a, Vec3 b, Vec3 d, double reach, Rng& rng) {
+  switch (which) {
+    case 0:
+      return a;
+    case 1:
+      return a + (b - a) * rng.uniform();
+    case 2:
+      return a - d * (reach * rng.uniform(0.01, 1.0));
+    default:
+      return a + (b - a) * 0.5 - d * (reach * rng.uniform(0.01, 1.0));
+  }
+}
+
+/// Appends n rays aimed exactly at the vertices of the mesh (triangle i % size, corner i % 3),
+/// each from 2 units away in a random direction.
+inline void addVertexRays(std::vector<Ray>& rays, const mtree::TriangleMesh& mesh, size_t n, Rng& rng) {
+  for (size_t i = 0; i < n; ++i) {
+    Ray r;
+    const Vec3 target = mesh.vertex(i % mesh.size(), static_cast<int>(i % 3));
+    r.o = target + rng.direction() * 2.0;
+    r.d = target - r.o;
+    rays.push_back(r);
+  }
+}
+
+/// Two meshes of 400 degenerate triangles in the box [0,1]x[0,2]x[0,3]: (points, pointTris) with
+/// every triangle a point, (segs, segTris) with every triangle three collinear points a, a + v,
+/// a + 2v (exactly collinear where the coordinates allow it).
+inline void degenerateTriangles(Rng& rng, std::vector<double>& points, std::vector<uint32_t>& pointTris,
+                                std::vector<double>& segs, std::vector<uint32_t>& segTris) {
+  for (uint32_t i = 0; i < 400; ++i) {
+    const Vec3 a = rng.inBox(Box{Vec3(0, 0, 0), Vec3(1, 2, 3)});
+    for (int k = 0; k < 3; ++k) points.insert(points.end(), {a.x, a.y, a.z});
+    pointTris.insert(pointTris.end(), {3 * i, 3 * i + 1, 3 * i + 2});
+    const Vec3 v = rng.direction() * 0.05;
+    for (int k = 0; k < 3; ++k) segs.insert(segs.end(), {a.x + k * v.x, a.y + k * v.y, a.z + k * v.z});
+    segTris.insert(segTris.end(), {3 * i, 3 * i + 2, 3 * i + 1});
+  }
+}
+
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(__INTEL_COMPILER)
 #define MTEST_PRETEST_CLONES __attribute__((target_clones("avx2", "default")))
 #else
@@ -537,6 +616,45 @@ class BruteForce {
   std::vector<double> ax_, ay_, az_, e1x_, e1y_, e1z_, e2x_, e2y_, e2z_;
   std::vector<double> corners_;  // a, b, c of every triangle: the confirming test's input
 };
+
+/// Seconds on the steady clock, for the timings the tests print (never assert).
+inline double seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+/// The brute force over a mesh with the first hits of one ray set, and the seconds both took.
+struct TimedFirstHits {
+  TimedFirstHits(const mtree::TriangleMesh& mesh, const std::vector<Ray>& rays)
+      : start(seconds()), bf(mesh), hits(bf.firstAll(rays)), elapsed(seconds() - start) {}
+  double start;
+  BruteForce bf;
+  std::vector<mtree::RayHit> hits;
+  double elapsed;
+};
+
+/// The mesh with every point scaled by `scale` about the origin, then moved by `offset`.
+inline mtree::TriangleMesh transformed(const mtree::TriangleMesh& m, double scale, Vec3 offset) {
+  std::vector<double> p = m.points();
+  for (size_t i = 0; i < p.size(); i += 3)
+    for (int a = 0; a < 3; ++a) p[i + a] = p[i + a] * scale + offset[a];
+  return mtree::TriangleMesh(std::move(p), m.triangles());
+}
+
+/// An n x n grid of quads (two triangles each) over [0,1] x [0,0.7] in the plane z = 0.25: a
+/// scene whose box has no z extent of its own.
+inline mtree::TriangleMesh flatGrid(int n) {
+  std::vector<double> p;
+  std::vector<uint32_t> t;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) p.insert(p.end(), {i / double(n), j * 0.7 / n, 0.25});
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const uint32_t a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+      t.insert(t.end(), {a, b, d, a, d, c});
+    }
+  return mtree::TriangleMesh(p, t);
+}
+
 /// Compares a tree answer with the reference. Equal if same primitive (and same t), or if both
 /// hit with |t1 - t2| <= 1e-6 max(1, |t|) (two triangles met at the same place: a shared edge or
 /// vertex, where round-off of the walk may pick the other one). `idDiffers` counts the latter.

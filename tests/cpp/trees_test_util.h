@@ -6,10 +6,15 @@
 #include <cstring>
 #include <vector>
 
+#include "mtree/trees/implicit_tree.h"
 #include "mtree/trees/split_tree.h"
 #include "test_util.h"
 
 namespace mtest {
+
+/// The three traversals of a split-plane tree, every test runs each.
+inline const mtree::SplitTraversal kTraversals[3] = {mtree::SplitTraversal::Stack, mtree::SplitTraversal::Restart,
+                                                     mtree::SplitTraversal::Backtrack};
 
 /// Same triangle, t, u, v to the bit.
 inline bool sameHitBits(const mtree::RayHit& a, const mtree::RayHit& b) {

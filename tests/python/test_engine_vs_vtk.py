@@ -75,6 +75,29 @@ def assert_same_locate(eng, ref, x, min_found):
     np.testing.assert_array_equal(w, rw[:, :w.shape[1]])
 
 
+def assert_same_first_hits(eng, ref, p1, p2, min_hits=None):
+    """Both locators' first hits of the segments p1 -> p2: the same cells, t and points, bit for
+    bit (with min_hits: more than that many segments hit)."""
+    t, ids, x = eng.first_hits(p1, p2)
+    rt, rids, rx = ref.trace(p1, ends=p2)
+    if min_hits is not None:
+        assert (ids >= 0).sum() > min_hits
+    np.testing.assert_array_equal(ids, rids)
+    np.testing.assert_array_equal(t, rt)
+    np.testing.assert_array_equal(x, rx)
+
+
+def assert_same_closest(eng, ref, q):
+    """Both locators' closest points of q: the same cells, squared distances and points, bit for
+    bit. Returns the squared distances."""
+    cp, cid, d2 = eng.closest_points(q)
+    rcp, rcid, rd2 = ref.closest_points(q)
+    np.testing.assert_array_equal(cid, rcid)
+    np.testing.assert_array_equal(d2, rd2)
+    np.testing.assert_array_equal(cp, rcp)
+    return d2
+
+
 GRIDS = ["cfd/brick_tets.su2", "cfd/brick_hex.su2", "cfd/brick_prism.su2", "cfd/brick_pyra.su2",
          "cfd/pipe_flow_tets.vtu"]
 
@@ -95,19 +118,10 @@ def test_segments_and_closest_points_match_on_a_grid(grid):
     eng, ref = both_locators(grid)
     p1 = random_points(grid, 300, seed=8, grow=0.3)
     p2 = random_points(grid, 300, seed=9, grow=0.3)
-    t, ids, x = eng.first_hits(p1, p2)
-    rt, rids, rx = ref.trace(p1, ends=p2)
-    assert (ids >= 0).sum() > 50
-    np.testing.assert_array_equal(ids, rids)
-    np.testing.assert_array_equal(t, rt)
-    np.testing.assert_array_equal(x, rx)
+    assert_same_first_hits(eng, ref, p1, p2, min_hits=50)
     q = random_points(grid, 300, seed=10, grow=0.5)
-    cp, cid, d2 = eng.closest_points(q)
-    rcp, rcid, rd2 = ref.closest_points(q)
-    np.testing.assert_array_equal(cid, rcid)
-    np.testing.assert_array_equal(d2, rd2)
-    np.testing.assert_array_equal(cp, rcp)
-    inside = rd2 == 0
+    d2 = assert_same_closest(eng, ref, q)
+    inside = d2 == 0
     np.testing.assert_array_equal(d2[inside], 0)
     # Outside, the closest point is on the grid's boundary: where VTK's closest point of a cell is
     # exact (tetrahedra; hexahedra whose faces are planar and parallel in pairs, as these bricks'
@@ -158,18 +172,10 @@ def test_surface_locator_matches_on_the_bunny(bunny):
     eng, ref = both_locators(bunny)
     assert eng.stats()["height"] == ref.vtk_locator.GetTreeHeight()
     q = random_points(bunny, 2000, seed=11, grow=0.2)
-    cp, cid, d2 = eng.closest_points(q)
-    rcp, rcid, rd2 = ref.closest_points(q)
-    np.testing.assert_array_equal(cid, rcid)
-    np.testing.assert_array_equal(d2, rd2)
-    np.testing.assert_array_equal(cp, rcp)
+    assert_same_closest(eng, ref, q)
     p1 = random_points(bunny, 2000, seed=12, grow=0.5)
     p2 = random_points(bunny, 2000, seed=13, grow=0.5)
-    t, ids, x = eng.first_hits(p1, p2)
-    rt, rids, rx = ref.trace(p1, ends=p2)
-    np.testing.assert_array_equal(ids, rids)
-    np.testing.assert_array_equal(t, rt)
-    np.testing.assert_array_equal(x, rx)
+    assert_same_first_hits(eng, ref, p1, p2)
     # Points near the surface (on random triangles, moved off them by up to ~1e-3 of the
     # diagonal): in a leaf, most project into some triangle there.
     pts, off, conn, _ = cell_arrays(bunny)

@@ -260,54 +260,10 @@ void matrixBatch(const MatrixTree& tree, const LeafTriangles& P, const RayBatch&
   }
 }
 
-/// One ray at a time through MatrixTree::traverseRay (a tree without a step table), with the
-/// payload's leaf tests.
-template <Simd S, TriangleTest T, bool Any, bool Count>
-void matrixSingle(const MatrixTree& tree, const LeafTriangles& P, const RayBatch& b, RayHit* hits, uint8_t* blocked,
-                  RayCounters ctr) {
-  const uint32_t* ids = tree.primitiveIndices().data();
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  for (size_t i = 0; i < b.n; ++i) {
-    const double tmax = b.tMax(i);
-    LeafRay ray;
-    ray.set<T>(b.o[i], b.d[i], b.tMin(i));
-    TraversalStats st;
-    uint64_t tests = 0;
-    RayHit hit;
-    hit.t = tmax;
-    bool found = false;
-    tree.traverseRay(
-        b.o[i], b.d[i], b.tMin(i), tmax,
-        [&](const uint32_t* leafIds, uint32_t count, double, double tExit) {
-          const uint32_t begin = static_cast<uint32_t>(leafIds - ids);
-          if constexpr (Any) {
-            uint32_t tested;
-            found = LeafTest<S, T>::any(P, begin, count, ray, tmax, tested);
-            tests += tested;
-            return found;
-          } else {
-            LeafTest<S, T>::first(P, ids, begin, count, ray, hit);
-            tests += count;
-            return hit.prim != MT_NULL && hit.t <= tExit;
-          }
-        },
-        Count ? &st : nullptr);
-    if constexpr (Any) {
-      blocked[i] = found;
-    } else {
-      if (!hit.hit()) hit.t = kInf;
-      hits[i] = hit;
-    }
-    if constexpr (Count) {
-      ctr.visits[i] += static_cast<uint32_t>(st.nodeVisits);
-      ctr.tests[i] += static_cast<uint32_t>(tests);
-    }
-  }
-}
-
-/// The SAH walks' visitor (SahKdTree::walk) with the payload's leaf tests.
+/// The payload's leaf tests for one ray: the SAH walks' visitor (SahKdTree::walk), and the leaf
+/// callback of MatrixTree::traverseRay.
 template <Simd S, TriangleTest T, bool Any>
-struct SahPayloadVisitor {
+struct PayloadVisitor {
   const LeafTriangles& P;
   const uint32_t* ids;
   LeafRay ray;
@@ -315,6 +271,12 @@ struct SahPayloadVisitor {
   double tmax;
   uint64_t tests = 0;
   bool found = false;
+  /// Ray k of the batch, no hit yet.
+  PayloadVisitor(const LeafTriangles& payload, const uint32_t* treeIds, const RayBatch& b, size_t k)
+      : P(payload), ids(treeIds), tmax(b.tMax(k)) {
+    ray.template set<T>(b.o[k], b.d[k], b.tMin(k));
+    hit.t = tmax;
+  }
   double cutoff() const {
     if constexpr (Any) return std::numeric_limits<double>::infinity();
     return hit.prim != MT_NULL ? hit.t : std::numeric_limits<double>::infinity();
@@ -332,29 +294,55 @@ struct SahPayloadVisitor {
       return false;
     }
   }
+  /// Ray i's answer into blocked (any hit) or hits (first hit, t = inf on a miss); with Count,
+  /// its node visits and tests added to ctr.
+  template <bool Count>
+  void store(size_t i, uint64_t visits, RayHit* hits, uint8_t* blocked, const RayCounters& ctr) {
+    if constexpr (Any) {
+      blocked[i] = found;
+    } else {
+      if (!hit.hit()) hit.t = std::numeric_limits<double>::infinity();
+      hits[i] = hit;
+    }
+    if constexpr (Count) {
+      ctr.visits[i] += static_cast<uint32_t>(visits);
+      ctr.tests[i] += static_cast<uint32_t>(tests);
+    }
+  }
 };
+
+/// One ray at a time through MatrixTree::traverseRay (a tree without a step table), with the
+/// payload's leaf tests.
+template <Simd S, TriangleTest T, bool Any, bool Count>
+void matrixSingle(const MatrixTree& tree, const LeafTriangles& P, const RayBatch& b, RayHit* hits, uint8_t* blocked,
+                  RayCounters ctr) {
+  for (size_t i = 0; i < b.n; ++i) {
+    PayloadVisitor<S, T, Any> vis(P, tree.primitiveIndices().data(), b, i);
+    TraversalStats st;
+    tree.traverseRay(
+        b.o[i], b.d[i], b.tMin(i), vis.tmax,
+        [&](const uint32_t* leafIds, uint32_t count, double, double tExit) {
+          if constexpr (Any) {
+            return vis.leaf(leafIds, count);
+          } else {
+            vis.leaf(leafIds, count);
+            // A hit inside this node (t <= tExit) cannot be beaten by a later node.
+            return vis.hit.prim != MT_NULL && vis.hit.t <= tExit;
+          }
+        },
+        Count ? &st : nullptr);
+    vis.template store<Count>(i, st.nodeVisits, hits, blocked, ctr);
+  }
+}
 
 template <Simd S, TriangleTest T, bool Any, bool Count>
 void sahBatch(const SahKdTree& tree, SahTraversal trav, int shortStack, const LeafTriangles& P, const RayBatch& b,
               RayHit* hits, uint8_t* blocked, RayCounters ctr) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
   for (size_t i = 0; i < b.n; ++i) {
-    const double tmax = b.tMax(i);
-    SahPayloadVisitor<S, T, Any> vis{P, tree.primitiveIndices().data(), LeafRay{}, RayHit{}, tmax};
-    vis.ray.template set<T>(b.o[i], b.d[i], b.tMin(i));
-    vis.hit.t = tmax;
+    PayloadVisitor<S, T, Any> vis(P, tree.primitiveIndices().data(), b, i);
     TraversalStats st;
-    tree.walk(trav, b.o[i], b.d[i], b.tMin(i), tmax, vis, Count ? &st : nullptr, shortStack);
-    if constexpr (Any) {
-      blocked[i] = vis.found;
-    } else {
-      if (!vis.hit.hit()) vis.hit.t = kInf;
-      hits[i] = vis.hit;
-    }
-    if constexpr (Count) {
-      ctr.visits[i] += static_cast<uint32_t>(st.nodeVisits);
-      ctr.tests[i] += static_cast<uint32_t>(vis.tests);
-    }
+    tree.walk(trav, b.o[i], b.d[i], b.tMin(i), vis.tmax, vis, Count ? &st : nullptr, shortStack);
+    vis.template store<Count>(i, st.nodeVisits, hits, blocked, ctr);
   }
 }
 

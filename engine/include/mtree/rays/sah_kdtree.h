@@ -223,6 +223,13 @@ class SahKdTree {
   bool setup(Vec3 o, Vec3 d, double tmin, double tmax, RayCtx& r) const;
   int decide(const SahKdNode& nd, const RayCtx& r, double tMin, double tMax, uint32_t& first, uint32_t& second,
              double& ts) const;
+  /// From node n down to the leaf the interval [tMin, tMax] meets first (front to back): a single
+  /// child the ray enters is passed to onOne(child); where it crosses the split, onFar(far child,
+  /// ts, tMax) receives the far part and tMax becomes ts. Returns the leaf (n its index), counts
+  /// the nodes seen in visits.
+  template <class OnOne, class OnFar>
+  const SahKdNode* descend(const RayCtx& r, uint32_t& n, double tMin, double& tMax, uint64_t& visits, OnOne&& onOne,
+                           OnFar&& onFar) const;
   template <class Visitor>
   void walkStack(const RayCtx& r, Visitor& vis, TraversalStats* st) const;
   template <class Visitor>
@@ -308,6 +315,29 @@ inline int SahKdTree::decide(const SahKdNode& nd, const RayCtx& r, double tMin, 
   return kBoth;
 }
 
+template <class OnOne, class OnFar>
+inline const SahKdNode* SahKdTree::descend(const RayCtx& r, uint32_t& n, double tMin, double& tMax, uint64_t& visits,
+                                           OnOne&& onOne, OnFar&& onFar) const {
+  const SahKdNode* nd = &nodes_[n];
+  ++visits;
+  while (!nd->isLeaf()) {
+    uint32_t first, second;
+    double ts = 0;
+    const int what = decide(*nd, r, tMin, tMax, first, second, ts);
+    if (what != kBoth) {
+      n = what == kFirst ? first : second;
+      onOne(n);
+    } else {
+      onFar(second, ts, tMax);
+      n = first;
+      tMax = ts;
+    }
+    nd = &nodes_[n];
+    ++visits;
+  }
+  return nd;
+}
+
 template <class Visitor>
 void SahKdTree::walkStack(const RayCtx& r, Visitor& vis, TraversalStats* st) const {
   Entry stack[kMaxDepth + 4];
@@ -316,24 +346,8 @@ void SahKdTree::walkStack(const RayCtx& r, Visitor& vis, TraversalStats* st) con
   uint32_t n = 0;
   double tMin = r.t0, tMax = r.t1;
   for (;;) {
-    const SahKdNode* nd = &nodes_[n];
-    ++visits;
-    while (!nd->isLeaf()) {
-      uint32_t first, second;
-      double ts = 0;
-      const int what = decide(*nd, r, tMin, tMax, first, second, ts);
-      if (what == kFirst) {
-        n = first;
-      } else if (what == kSecond) {
-        n = second;
-      } else {
-        stack[sp++] = Entry{second, ts, tMax};
-        n = first;
-        tMax = ts;
-      }
-      nd = &nodes_[n];
-      ++visits;
-    }
+    const SahKdNode* nd = descend(r, n, tMin, tMax, visits, [](uint32_t) {},
+                                  [&](uint32_t far, double ts, double t1) { stack[sp++] = Entry{far, ts, t1}; });
     ++leaves;
     if (nd->primCount() && vis.leaf(prims_.data() + nd->primOffset(), nd->primCount())) break;
     // The next entry starts where this leaf ends (leaves come front to back); a hit before that
@@ -357,23 +371,7 @@ void SahKdTree::walkRestart(const RayCtx& r, Visitor& vis, TraversalStats* st) c
   for (;;) {
     uint32_t n = 0;
     double tMax = r.t1;
-    const SahKdNode* nd = &nodes_[n];
-    ++visits;
-    while (!nd->isLeaf()) {
-      uint32_t first, second;
-      double ts = 0;
-      const int what = decide(*nd, r, tMin, tMax, first, second, ts);
-      if (what == kFirst) {
-        n = first;
-      } else if (what == kSecond) {
-        n = second;
-      } else {
-        n = first;
-        tMax = ts;
-      }
-      nd = &nodes_[n];
-      ++visits;
-    }
+    const SahKdNode* nd = descend(r, n, tMin, tMax, visits, [](uint32_t) {}, [](uint32_t, double, double) {});
     ++leaves;
     if (nd->primCount() && vis.leaf(prims_.data() + nd->primOffset(), nd->primCount())) break;
     // The ray ends in this leaf, or a hit precedes its exit. Otherwise tMin strictly grows (every
@@ -397,28 +395,19 @@ void SahKdTree::walkShortStack(const RayCtx& r, Visitor& vis, int K, TraversalSt
   uint32_t n = 0;
   double tMin = r.t0, tMax = r.t1;
   for (;;) {
-    const SahKdNode* nd = &nodes_[n];
-    ++visits;
-    while (!nd->isLeaf()) {
-      uint32_t first, second;
-      double ts = 0;
-      const int what = decide(*nd, r, tMin, tMax, first, second, ts);
-      if (what != kBoth) {
-        n = what == kFirst ? first : second;
-        if (pushdown) restartNode = n;
-      } else {
-        if (K > 0) {
-          ring[top] = Entry{second, ts, tMax};
-          top = top + 1 == K ? 0 : top + 1;
-          if (count < K) ++count;  // else the oldest entry was overwritten
-        }
-        pushdown = false;
-        n = first;
-        tMax = ts;
-      }
-      nd = &nodes_[n];
-      ++visits;
-    }
+    const SahKdNode* nd = descend(
+        r, n, tMin, tMax, visits,
+        [&](uint32_t child) {
+          if (pushdown) restartNode = child;
+        },
+        [&](uint32_t far, double ts, double t1) {
+          if (K > 0) {
+            ring[top] = Entry{far, ts, t1};
+            top = top + 1 == K ? 0 : top + 1;
+            if (count < K) ++count;  // else the oldest entry was overwritten
+          }
+          pushdown = false;
+        });
     ++leaves;
     if (nd->primCount() && vis.leaf(prims_.data() + nd->primOffset(), nd->primCount())) break;
     if (tMax >= r.t1 || vis.cutoff() < before(tMax)) break;
