@@ -80,7 +80,9 @@ GXX_BIN="$(command -v g++)"
 # leaf tests, the volume build and marcher) and the VTK classes' input checks and threaded
 # queries, with the programs' slow real-mesh sweeps left to the normal build (ctest -E below).
 ASAN_TESTS="test_input_checks;test_concurrency;test_cell_mirror;test_leaf_boxes;test_tree_queries;test_matrix_tree;test_build_sort;test_cells;test_cell_eval;test_edge_cases;test_parallel;test_rays;test_volume;test_block_sparse;test_layout;test_smoke"
-ASAN_EXCLUDE='RealMesh|Real/|AllMeshes|turbineblade|lucy|nefertiti|horse|bunny|Large|Huge|Sweep'
+# Also left out: the fuzz harnesses' ctest entries (their programs are the fuzz stage's) and the
+# checks on the normal build's AVX2 objects (instrumented objects carry the sanitizer's symbols).
+ASAN_EXCLUDE='RealMesh|Real/|AllMeshes|turbineblade|lucy|nefertiti|horse|bunny|Large|Huge|Sweep|^fuzz\.|avx2_unit_defines|VolumeAvx2\.'
 # The threaded tests under TSan: queries from std::threads (test_concurrency), the OpenMP scan and
 # radix sort (test_parallel), the OpenMP batch leaf tests (test_leaf_boxes), the OpenMP volume
 # build, classification and render (test_volume).
