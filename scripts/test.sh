@@ -80,20 +80,24 @@ mpi_rc=${PIPESTATUS[0]}
 T_MPI=$((SECONDS - T4))
 
 # Sanitizers and fuzzing (scripts/sanitize.sh, docs/reliability.md): the stages named in
-# $MATRIXTREE_SANITIZE_STAGES, default "fuzz" (the engine's fuzz harnesses built with clang under
-# ASan+UBSan, each fuzzed $MATRIXTREE_FUZZ_SECONDS from seed 1 after replaying its regressions,
-# then the Python reader fuzzer as long); "asan tsan fuzz" runs all three, "none" skips.
-SAN_STAGES="${MATRIXTREE_SANITIZE_STAGES:-fuzz}"
+# $MATRIXTREE_SANITIZE_STAGES, default "asan tsan fuzz": a GCC ASan+UBSan build of the engine, the
+# VTK module's library and a C++ test subset; a clang TSan build of the threaded tests (OpenMP
+# through Archer); the fuzz harnesses (clang, libFuzzer, ASan+UBSan), each fuzzed
+# $MATRIXTREE_FUZZ_SECONDS (default 10) from seed 1 after replaying its regressions, then the
+# Python reader fuzzer as long. A subset ("fuzz") runs fewer; "none" skips them all.
+SAN_STAGES="${MATRIXTREE_SANITIZE_STAGES:-asan tsan fuzz}"
 echo "[test] sanitize: $SAN_STAGES"
 T6=$SECONDS
 sanitize_stages() {
-  local stage rc=0
+  local stage rc=0 t
   for stage in $SAN_STAGES; do
+    t=$SECONDS
     if [[ "$stage" == "fuzz" ]]; then
       bash scripts/sanitize.sh fuzz "${MATRIXTREE_FUZZ_SECONDS:-10}" || rc=1
     else
       bash scripts/sanitize.sh "$stage" || rc=1
     fi
+    echo "[test] sanitize stage $stage: $((SECONDS - t)) s"
   done
   return "$rc"
 }
@@ -113,7 +117,7 @@ echo "pytest: $(verdict "$pytest_rc") (${T_PYTEST} s) - $(grep -E '(passed|faile
 echo "pip   : $(verdict "$pip_rc") (${T_PIP} s) - $(grep -oE 'vtk [0-9.]+, pyvista [0-9.]+' build/pytest-pip.log | tail -n 1); $(grep -E '(passed|failed|error|no tests ran)' build/pytest-pip.log | tail -n 1)"
 echo "paraview: $(verdict "$paraview_rc") (${T_PARAVIEW} s) - $(grep -E '(passed|failed|error|no tests ran)' build/paraview.log | tail -n 1)"
 echo "mpi   : $(verdict "$mpi_rc") (${T_MPI} s) - $(grep -E '(passed|failed|error|no tests ran)' build/mpi.log | tail -n 1)"
-echo "sanitize: $(verdict "$sanitize_rc") (${T_SANITIZE} s) - stages: $SAN_STAGES"
+echo "sanitize: $(verdict "$sanitize_rc") (${T_SANITIZE} s) - stages: $SAN_STAGES$(grep -oE 'stage [a-z]+: [0-9]+ s' build/sanitize.log 2>/dev/null | sed 's/^stage /; /' | tr -d '\n')"
 
 [[ "$ctest_rc" -eq 0 && "$pytest_rc" -eq 0 && "$pip_rc" -eq 0 && "$paraview_rc" -eq 0 && "$mpi_rc" -eq 0 &&
   "$sanitize_rc" -eq 0 ]]

@@ -92,7 +92,11 @@ void BlockSparseVolume::classify(const TransferTable& tf, const VolumeBuildOptio
           if (!opt.sparse) continue;
           for (int c = 0; c < 8; ++c) {
             const size_t p = vox_.pointerIndex(i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2));
-            if (!marks[p]) {
+            // Bricks share their face voxels' blocks: every access to marks is atomic.
+            uint8_t seen;
+#pragma omp atomic read
+            seen = marks[p];
+            if (!seen) {
 #pragma omp atomic write
               marks[p] = 1;
             }
