@@ -462,4 +462,10 @@ def render_volume(volume, *, size=(512, 512), camera=None, color=None, opacity=N
                   device: str | None = None, return_stats: bool = False, quality: str | None = None):
     """Ray cast a scalar volume: ``matrixtree.volume.render_volume`` on the engine (same
     arguments and results)."""
-from matrixtree import _checks, _meshstate
+    return VolumeRenderer(volume, color=color, opacity=opacity, spacing=spacing, origin=origin,
+                          opacity_unit_distance=opacity_unit_distance, threads=threads, backend=backend,
+                          device=device).render(camera=camera, size=size, sample_distance=sample_distance,
+                                                image_sample_distance=image_sample_distance,
+                                                early_termination=early_termination,
+                                                double_precision=double_precision, shade=shade,
+                                                return_stats=return_stats, quality=quality)
