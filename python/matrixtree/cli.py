@@ -33,7 +33,7 @@ import time
 import numpy as np
 
 import matrixtree
-from matrixtree import scenes
+from matrixtree import filters, scenes
 
 METHODS = ("octree", "kdtree", "sah-stack", "sah-shortstack", "sah-restart")
 LABELS = {"octree": "matrix octree", "kdtree": "matrix kd-tree", "sah-stack": "SAH kd-tree, stack",
@@ -192,21 +192,22 @@ def _locate(a) -> None:
     t1 = time.perf_counter()
     cells, weights = loc.locate(pts, return_weights=True)
     ms = 1e3 * (time.perf_counter() - t1)
-    probed = matrixtree.probe(grid, pts, locator=loc)  # the grid's point and cell data at the points
+    # the grid's point and cell data at the points, from the cells and weights just found
+    fields, valid = filters._interpolate_located(grid, cells, weights)
+    fields[filters.VALID_MASK] = valid
     os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
     if _extension(out) == ".npz":
-        fields = {f"point_data/{k}": np.asarray(probed.point_data[k]) for k in probed.point_data.keys()}
-        np.savez(out, points=pts, cell_ids=cells, weights=weights, **fields)
+        np.savez(out, points=pts, cell_ids=cells, weights=weights, **{f"point_data/{k}": v for k, v in fields.items()})
     else:
         cloud = pv.PolyData(pts) if _extension(out) == ".vtp" else pv.PolyData(pts).cast_to_unstructured_grid()
-        for k in probed.point_data.keys():
-            cloud.point_data[k] = np.asarray(probed.point_data[k])
+        for k, v in fields.items():
+            cloud.point_data[k] = v
         cloud.point_data["cell_id"] = cells
         cloud.save(out)
     found = int(np.sum(cells >= 0))
     print(f"{len(pts):,} points in {grid.GetNumberOfCells():,} cells: {found:,} inside, "
           f"{len(pts) - found:,} outside (-1); {ms:.1f} ms ({len(pts) / max(ms, 1e-9) / 1e3:.2f} M points/s)")
-    names = [k for k in probed.point_data.keys() if k != "vtkValidPointMask"]
+    names = [k for k in fields if k != filters.VALID_MASK]
     print(f"wrote {out}: cell ids, weights" + (f", fields {', '.join(names)}" if names else "") +
           " and vtkValidPointMask")
 

@@ -175,13 +175,8 @@ def find_cells_within_bounds(mesh, bounds, *, locator=None) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # Sampling: point and cell data at points
 # ---------------------------------------------------------------------------------------------
-def _interpolate(source, loc, points: np.ndarray, progress_bar: bool, desc: str):
-    """{name: array} of ``source``'s point arrays interpolated at ``points`` (the containing
-    cell's weights) and its cell arrays taken from the containing cell, and the valid mask.
-
-    As vtkProbeFilter: a point in no cell gets 0 in every array and 0 in the mask; integer
-    arrays are rounded half away from zero and clamped to their type.
-    """
+def _numeric_arrays(source):
+    """``source``'s cell offsets and connectivity, and its numeric point and cell arrays."""
     import pyvista as pv
 
     source = pv.wrap(source)
@@ -190,30 +185,60 @@ def _interpolate(source, loc, points: np.ndarray, progress_bar: bool, desc: str)
     cd = {k: np.asarray(source.cell_data[k]) for k in source.cell_data.keys()}
     pd = {k: v for k, v in pd.items() if v.dtype.kind in "biuf"}
     cd = {k: v for k, v in cd.items() if v.dtype.kind in "biuf"}
-    n = len(points)
-    out = {k: np.zeros((n,) + v.shape[1:], v.dtype) for k, v in {**pd, **cd}.items()}
-    mask = np.zeros(n, np.int8)
-    for s in _chunks(n, progress_bar, desc):
+    return offsets, conn, pd, cd
+
+
+def _fill_located(out: dict, mask: np.ndarray, start: int, ids: np.ndarray, w: np.ndarray, arrays) -> None:
+    """Rows ``start:start + len(ids)`` of ``out`` and ``mask`` from located points: ``ids`` the
+    containing cells (-1: none), ``w`` their interpolation weights (CellLocator.locate)."""
+    offsets, conn, pd, cd = arrays
+    found = np.flatnonzero(ids >= 0)
+    cells = ids[found]
+    mask[start + found] = 1
+    if not len(found):
+        return
+    size = offsets[cells + 1] - offsets[cells]
+    cols = np.arange(w.shape[1])
+    used = cols[None, :] < size[:, None]
+    where = np.where(used, offsets[cells][:, None] + cols[None, :], 0)
+    pids = conn[where]
+    wf = np.where(used, w[found], 0.0)
+    rows = start + found
+    for k, v in pd.items():
+        vals = v[pids].astype(np.float64)                  # (m, k, ...)
+        vals[~used] = 0.0
+        acc = np.einsum("mk,mk...->m...", wf, vals)
+        out[k][rows] = _to_type(acc, v.dtype)
+    for k, v in cd.items():
+        out[k][rows] = v[cells]
+
+
+def _empty_result(n: int, arrays):
+    _, _, pd, cd = arrays
+    return {k: np.zeros((n,) + v.shape[1:], v.dtype) for k, v in {**pd, **cd}.items()}, np.zeros(n, np.int8)
+
+
+def _interpolate(source, loc, points: np.ndarray, progress_bar: bool, desc: str):
+    """{name: array} of ``source``'s point arrays interpolated at ``points`` (the containing
+    cell's weights) and its cell arrays taken from the containing cell, and the valid mask.
+
+    As vtkProbeFilter: a point in no cell gets 0 in every array and 0 in the mask; integer
+    arrays are rounded half away from zero and clamped to their type.
+    """
+    arrays = _numeric_arrays(source)
+    out, mask = _empty_result(len(points), arrays)
+    for s in _chunks(len(points), progress_bar, desc):
         ids, w = loc.locate(points[s], return_weights=True)
-        found = np.flatnonzero(ids >= 0)
-        cells = ids[found]
-        mask[s][found] = 1
-        if not len(found):
-            continue
-        size = offsets[cells + 1] - offsets[cells]
-        cols = np.arange(w.shape[1])
-        used = cols[None, :] < size[:, None]
-        where = np.where(used, offsets[cells][:, None] + cols[None, :], 0)
-        pids = conn[where]
-        wf = np.where(used, w[found], 0.0)
-        rows = s.start + found
-        for k, v in pd.items():
-            vals = v[pids].astype(np.float64)                  # (m, k, ...)
-            vals[~used] = 0.0
-            acc = np.einsum("mk,mk...->m...", wf, vals)
-            out[k][rows] = _to_type(acc, v.dtype)
-        for k, v in cd.items():
-            out[k][rows] = v[cells]
+        _fill_located(out, mask, s.start, ids, w, arrays)
+    return out, mask
+
+
+def _interpolate_located(source, cell_ids: np.ndarray, weights: np.ndarray):
+    """:func:`_interpolate`'s result for points already located: ``cell_ids`` and ``weights``
+    as ``CellLocator.locate(points, return_weights=True)`` gives them (no second location)."""
+    arrays = _numeric_arrays(source)
+    out, mask = _empty_result(len(cell_ids), arrays)
+    _fill_located(out, mask, 0, np.asarray(cell_ids), np.asarray(weights), arrays)
     return out, mask
 
 
